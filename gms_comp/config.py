@@ -92,7 +92,9 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(str(p), "", f"not valid TOML ({err})") from err
     for name, value in doc.items():
         if name not in KNOWN_SECTIONS:
-            raise ConfigError(str(p), name, f"unknown section (known: {', '.join(sorted(KNOWN_SECTIONS))})")
+            raise ConfigError(
+                str(p), name, f"unknown section (known: {', '.join(sorted(KNOWN_SECTIONS))})"
+            )
         if not isinstance(value, dict):
             raise ConfigError(str(p), name, "must be a [section] table")
     return doc
@@ -114,7 +116,9 @@ def parse_section(doc: Mapping[str, Any], path: str | Path, section: str, cls: t
     where = str(path)
     for key in table:
         if key not in fields:
-            raise ConfigError(where, f"{section}.{key}", f"unknown key (known: {', '.join(fields)})")
+            raise ConfigError(
+                where, f"{section}.{key}", f"unknown key (known: {', '.join(fields)})"
+            )
     values: dict[str, Any] = {}
     for name, f in fields.items():
         key = f"{section}.{name}"
@@ -143,7 +147,9 @@ def _coerce(value: Any, hint: Any, where: str, key: str) -> Any:
     if origin is Literal:
         choices = typing.get_args(hint)
         if value not in choices:
-            raise ConfigError(where, key, f"must be one of {', '.join(map(repr, choices))}, got {value!r}")
+            raise ConfigError(
+                where, key, f"must be one of {', '.join(map(repr, choices))}, got {value!r}"
+            )
         return value
     if origin in (typing.Union, types.UnionType):
         args = typing.get_args(hint)
@@ -168,7 +174,9 @@ def _coerce(value: Any, hint: Any, where: str, key: str) -> Any:
         return float(value)
     if hint is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(where, key, f"must be an integer, got {type(value).__name__} {value!r}")
+            raise ConfigError(
+                where, key, f"must be an integer, got {type(value).__name__} {value!r}"
+            )
         return value
     if hint is bool:
         if not isinstance(value, bool):
@@ -202,8 +210,8 @@ class BearingConfig:
             return [
                 (
                     "raceway_radius_m",
-                    f"must be > ball_radius_m ({self.raceway_radius_m:g} <= {self.ball_radius_m:g}):"
-                    " a groove must be wider than the ball",
+                    f"must be > ball_radius_m ({self.raceway_radius_m:g} <= "
+                    f"{self.ball_radius_m:g}): a groove must be wider than the ball",
                 )
             ]
         return []
