@@ -1,0 +1,1 @@
+"""The simulated linear-motor axis: plant, controller, trajectories, scenarios."""
