@@ -1,0 +1,219 @@
+"""Trace loading: canonical CSV, EMPS .mat, explicit mappings and every bad-input rule."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.io
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gms_comp.errors import GmsCompError, TraceError
+from gms_comp.traces import Trace, TraceUnitWarning, load_trace, parse_mapping, write_trace
+
+EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
+needs_emps = pytest.mark.skipif(
+    not (EMPS / "DATA_EMPS.mat").is_file(), reason=f"EMPS data not found in {EMPS}"
+)
+
+
+def _csv(tmp_path: Path, text: str, name: str = "t.csv") -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def _good_rows(n: int = 200) -> str:
+    t = np.arange(n) * 1e-3
+    x = 1e-3 * np.sin(2 * np.pi * t)
+    f = np.cos(2 * np.pi * t)
+    return "\n".join(f"{a:.17g},{b:.17g},{c:.17g}" for a, b, c in zip(t, x, f, strict=True))
+
+
+def test_canonical_csv_round_trip(tmp_path: Path) -> None:
+    n = 150
+    t = np.arange(n) * 2e-3
+    trace = Trace(
+        source="mem",
+        time_s=t,
+        position_m=1e-3 * np.sin(t),
+        force_N=np.cos(t),
+        velocity_m_s=1e-3 * np.cos(t),
+    )
+    p = tmp_path / "rt.csv"
+    write_trace(p, trace)
+    back = load_trace(p)
+    for name in ("time_s", "position_m", "force_N", "velocity_m_s"):
+        np.testing.assert_allclose(getattr(back, name), getattr(trace, name), rtol=1e-11)
+    assert back.current_A is None
+    assert back.force_kind is None
+
+
+def test_error_names_file_and_missing_column(tmp_path: Path) -> None:
+    p = _csv(tmp_path, "time_s,position_m\n0,0\n1,1\n")
+    with pytest.raises(TraceError, match=r"t\.csv: missing column 'force_N'"):
+        load_trace(p)
+
+
+def test_non_numeric_cell_names_row_and_column(tmp_path: Path) -> None:
+    text = "time_s,position_m,force_N\n" + _good_rows(5) + "\n0.006,abc,1\n"
+    with pytest.raises(TraceError, match=r"row 7, column position_m: not a number 'abc'"):
+        load_trace(_csv(tmp_path, text))
+
+
+@pytest.mark.parametrize("cell", ["nan", "inf", "-inf"])
+def test_nan_inf_refused(tmp_path: Path, cell: str) -> None:
+    text = "time_s,position_m,force_N\n0,0,1\n0.001,0.001," + cell + "\n"
+    with pytest.raises(TraceError, match=r"row 3, column force_N: .* not finite"):
+        load_trace(_csv(tmp_path, text))
+
+
+def test_time_not_increasing(tmp_path: Path) -> None:
+    lines = _good_rows(200).split("\n")
+    lines[50] = lines[49]  # a repeated time stamp at file row 52
+    text = "time_s,position_m,force_N\n" + "\n".join(lines) + "\n"
+    with pytest.raises(TraceError, match=r"row 52, column time_s: time does not increase"):
+        load_trace(_csv(tmp_path, text))
+
+
+def test_too_few_samples(tmp_path: Path) -> None:
+    text = "time_s,position_m,force_N\n" + _good_rows(20) + "\n"
+    with pytest.raises(TraceError, match=r"20 samples, the analysis needs at least 100"):
+        load_trace(_csv(tmp_path, text))
+
+
+def test_no_motion(tmp_path: Path) -> None:
+    rows = "\n".join(f"{i * 1e-3},0.5,{i}" for i in range(200))
+    with pytest.raises(TraceError, match=r"column position_m: no motion"):
+        load_trace(_csv(tmp_path, "time_s,position_m,force_N\n" + rows + "\n"))
+
+
+def test_ragged_row(tmp_path: Path) -> None:
+    text = "time_s,position_m,force_N\n0,0,0\n0.001,0\n"
+    with pytest.raises(TraceError, match=r"row 3: 2 cells, the header has 3"):
+        load_trace(_csv(tmp_path, text))
+
+
+def test_unknown_format_and_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(TraceError, match="file not found"):
+        load_trace(tmp_path / "nope.csv")
+    with pytest.raises(TraceError, match="unknown trace format"):
+        load_trace(_csv(tmp_path, "x", name="t.txt"))
+
+
+def test_trace_error_is_project_and_builtin_error() -> None:
+    assert issubclass(TraceError, GmsCompError)
+    assert issubclass(TraceError, ValueError)
+
+
+def test_millimetre_positions_warn(tmp_path: Path) -> None:
+    n = 200
+    t = np.arange(n) * 1e-3
+    rows = "\n".join(f"{a},{300 * np.sin(10 * a)},{1.0}" for a in t)  # a 300 "m" stroke
+    p = _csv(tmp_path, "time_s,position_m,force_N\n" + rows + "\n")
+    with pytest.warns(TraceUnitWarning, match=r"looks like mm; assumed metres"):
+        load_trace(p)
+
+
+def test_plausible_trace_does_not_warn(tmp_path: Path) -> None:
+    p = _csv(tmp_path, "time_s,position_m,force_N\n" + _good_rows() + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_trace(p)
+
+
+def test_mapping_with_scale(tmp_path: Path) -> None:
+    n = 120
+    t = np.arange(n) * 1e-3
+    rows = "\n".join(f"{a},{1e3 * a},{2 * a}" for a in t)
+    p = _csv(tmp_path, "zeit,pos_mm,strom\n" + rows + "\n")
+    mapping = parse_mapping(["time_s=zeit", "position_m=pos_mm*0.001", "force_N=strom*25"], "cli")
+    trace = load_trace(p, mapping)
+    np.testing.assert_allclose(trace.position_m, t, atol=1e-15)
+    np.testing.assert_allclose(trace.force_N, 50 * t, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("entry", "message"),
+    [
+        ("position_m", "must read COLUMN=EXPRESSION"),
+        ("speed=v", "unknown column 'speed'"),
+        ("force_N=__import__('os')", "neither a column name nor a number"),
+        ("force_N=a*1e999", "not finite"),
+    ],
+)
+def test_bad_mapping_entries(entry: str, message: str) -> None:
+    with pytest.raises(TraceError, match=message):
+        parse_mapping([entry], "cli")
+
+
+def test_mapping_to_absent_source(tmp_path: Path) -> None:
+    p = _csv(tmp_path, "a,b,c\n" + _good_rows() + "\n")
+    with pytest.raises(TraceError, match=r"column force_N: source 'd' not found"):
+        load_trace(p, {"time_s": "a", "position_m": "b", "force_N": "d"})
+
+
+def test_mat_needs_mapping_unless_emps(tmp_path: Path) -> None:
+    n = 200
+    t = np.arange(n) * 1e-3
+    p = tmp_path / "m.mat"
+    scipy.io.savemat(p, {"tt": t[:, None], "x": np.sin(t)[:, None], "f": np.cos(t)[:, None]})
+    with pytest.raises(TraceError, match=r"not an EMPS record \(missing variables"):
+        load_trace(p)
+    trace = load_trace(p, {"time_s": "tt", "position_m": "x", "force_N": "f"})
+    np.testing.assert_allclose(trace.force_N, np.cos(t))
+
+
+def test_emps_shaped_mat_is_recognised(tmp_path: Path) -> None:
+    n = 300
+    t = np.arange(n) * 1e-3
+    vir = np.sin(5 * t)
+    p = tmp_path / "e.mat"
+    scipy.io.savemat(
+        p,
+        {"t": t[:, None], "qm": 0.1 * t[:, None], "vir": vir[:, None], "gtau": np.array([[35.0]])},
+    )
+    trace = load_trace(p)
+    assert trace.force_kind == "drive"
+    np.testing.assert_allclose(trace.force_N, 35.0 * vir)
+    assert trace.reference_position_m is None
+
+
+def test_garbage_mat_is_refused(tmp_path: Path) -> None:
+    p = tmp_path / "bad.mat"
+    p.write_bytes(b"\x00\x01 this is not matlab" * 10)
+    with pytest.raises(TraceError, match=r"bad\.mat"):
+        load_trace(p)
+
+
+@needs_emps
+def test_emps_file_values() -> None:
+    """Facts from PROVENANCE.md: 24841 samples, 1 ms, force = gtau*vir, gtau = 35.1507 N/V."""
+    trace = load_trace(EMPS / "DATA_EMPS.mat")
+    assert len(trace) == 24841
+    assert trace.force_kind == "drive"
+    assert trace.sample_time_s == pytest.approx(1e-3, rel=1e-6)
+    raw = scipy.io.loadmat(str(EMPS / "DATA_EMPS.mat"))
+    np.testing.assert_allclose(trace.force_N, 35.15065188248547 * raw["vir"].ravel())
+    assert trace.reference_position_m is not None
+    assert np.ptp(trace.position_m) == pytest.approx(0.2464, abs=1e-3)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    st.lists(st.floats(min_value=-1e3, max_value=1e3, allow_nan=False), min_size=100, max_size=140)
+)
+def test_csv_round_trip_any_force(tmp_path_factory: pytest.TempPathFactory, f: list[float]) -> None:
+    n = len(f)
+    trace = Trace(
+        source="mem",
+        time_s=np.arange(n) * 1e-3,
+        position_m=np.linspace(0.0, 1e-3, n),
+        force_N=np.array(f),
+    )
+    p = tmp_path_factory.mktemp("rt") / "h.csv"
+    write_trace(p, trace)
+    np.testing.assert_allclose(load_trace(p).force_N, trace.force_N, rtol=1e-11, atol=1e-300)
