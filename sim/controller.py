@@ -1,0 +1,159 @@
+"""Cascade controller of the axis: P position loop around a PI velocity loop.
+
+Designed in continuous time from the plant's mass and force constant and
+discretized with python-control at the servo rate:
+
+- velocity PI ``C_v(s) = K_v (s + w_i) / s`` with ``K_v = m w_v / k_f`` (A per m/s),
+  so that the velocity loop crosses over near ``w_v``;
+- position P ``K_p = w_p`` (1/s) on the position error, plus the reference
+  velocity as feedforward into the velocity loop;
+- the reference acceleration as current feedforward ``m a / k_f``;
+- the velocity measured by differencing the encoder, through a first-order
+  low-pass.
+
+The PI and the filter become discrete state-space blocks (``control.c2d``); the
+PI integrator stops integrating while the current command saturates in the
+direction of the error (conditional anti-windup).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import control
+import numpy as np
+
+from gms_comp.config import positive
+
+from .plant import PlantConfig
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    """The ``[controller]`` section."""
+
+    servo_rate_Hz: float = field(default=4000.0, metadata=positive())
+    position_bandwidth_Hz: float = field(default=30.0, metadata=positive())
+    velocity_bandwidth_Hz: float = field(default=150.0, metadata=positive())
+    integral_corner_Hz: float = field(default=30.0, metadata=positive())
+    velocity_filter_Hz: float = field(default=1000.0, metadata=positive())
+    discretization: Literal["tustin", "zoh", "foh", "backward_diff"] = "tustin"
+    acceleration_feedforward: bool = True
+
+    @property
+    def servo_period_s(self) -> float:
+        """One servo cycle."""
+        return 1.0 / self.servo_rate_Hz
+
+    def problems(self) -> list[tuple[str, str]]:
+        """Bandwidths must fit under the Nyquist rate and nest (position < velocity)."""
+        found = []
+        nyquist = self.servo_rate_Hz / 2
+        for name in ("velocity_bandwidth_Hz", "velocity_filter_Hz"):
+            if getattr(self, name) >= nyquist:
+                found.append((name, f"must be below half the servo rate ({nyquist:g} Hz)"))
+        if self.position_bandwidth_Hz >= self.velocity_bandwidth_Hz:
+            found.append(("position_bandwidth_Hz", "must be below velocity_bandwidth_Hz"))
+        if self.integral_corner_Hz >= self.velocity_bandwidth_Hz:
+            found.append(("integral_corner_Hz", "must be below velocity_bandwidth_Hz"))
+        return found
+
+
+@dataclass(frozen=True)
+class DiscreteBlock:
+    """A first-order discrete block ``x+ = a x + b e``, ``y = c x + d e``."""
+
+    a: float
+    b: float
+    c: float
+    d: float
+
+    @classmethod
+    def from_continuous(
+        cls, sys: control.TransferFunction, period_s: float, method: str
+    ) -> DiscreteBlock:
+        """Discretize a first-order SISO transfer function."""
+        d = control.ss(control.c2d(sys, period_s, method))
+        a, b, c, dd = (float(np.asarray(m).item()) for m in (d.A, d.B, d.C, d.D))
+        return cls(a, b, c, dd)
+
+
+@dataclass(frozen=True)
+class CascadeGains:
+    """The designed controller."""
+
+    position_gain_per_s: float
+    velocity_pi: DiscreteBlock
+    velocity_filter: DiscreteBlock
+    acceleration_gain_A_s2_per_m: float
+    servo_period_s: float
+
+
+def design(plant: PlantConfig, cfg: ControllerConfig) -> CascadeGains:
+    """Design and discretize the cascade for ``plant``."""
+    wv = 2 * math.pi * cfg.velocity_bandwidth_Hz
+    wi = 2 * math.pi * cfg.integral_corner_Hz
+    wf = 2 * math.pi * cfg.velocity_filter_Hz
+    kv = plant.moving_mass_kg * wv / plant.force_constant_N_per_A
+    pi = control.tf([kv, kv * wi], [1.0, 0.0])
+    lowpass = control.tf([wf], [1.0, wf])
+    ts = cfg.servo_period_s
+    ff = plant.moving_mass_kg / plant.force_constant_N_per_A if cfg.acceleration_feedforward else 0
+    return CascadeGains(
+        position_gain_per_s=2 * math.pi * cfg.position_bandwidth_Hz,
+        velocity_pi=DiscreteBlock.from_continuous(pi, ts, cfg.discretization),
+        velocity_filter=DiscreteBlock.from_continuous(lowpass, ts, cfg.discretization),
+        acceleration_gain_A_s2_per_m=ff,
+        servo_period_s=ts,
+    )
+
+
+class CascadeController:
+    """The discrete cascade, one servo cycle per :meth:`step`."""
+
+    def __init__(self, gains: CascadeGains, current_limit_A: float) -> None:
+        self.gains = gains
+        self.current_limit_A = current_limit_A
+        self.reset()
+
+    def reset(self, position_m: float = 0.0) -> None:
+        """At rest at ``position_m``."""
+        self._pi_state = 0.0
+        self._filter_state = 0.0
+        self._last_position_m = position_m
+        self.velocity_m_s = 0.0
+
+    def step(
+        self,
+        measured_position_m: float,
+        reference_position_m: float,
+        reference_velocity_m_s: float,
+        reference_acceleration_m_s2: float,
+        feedforward_current_A: float,
+    ) -> float:
+        """Return the current command for this cycle (clipped to the current limit)."""
+        g = self.gains
+        raw_velocity = (measured_position_m - self._last_position_m) / g.servo_period_s
+        self._last_position_m = measured_position_m
+        f = g.velocity_filter
+        self.velocity_m_s = f.c * self._filter_state + f.d * raw_velocity
+        self._filter_state = f.a * self._filter_state + f.b * raw_velocity
+        velocity_command = (
+            g.position_gain_per_s * (reference_position_m - measured_position_m)
+            + reference_velocity_m_s
+        )
+        error = velocity_command - self.velocity_m_s
+        pi = g.velocity_pi
+        command = (
+            pi.c * self._pi_state
+            + pi.d * error
+            + g.acceleration_gain_A_s2_per_m * reference_acceleration_m_s2
+            + feedforward_current_A
+        )
+        limit = self.current_limit_A
+        clipped = min(max(command, -limit), limit)
+        if clipped == command or (command > clipped) != (error > 0):
+            self._pi_state = pi.a * self._pi_state + pi.b * error
+        return clipped
