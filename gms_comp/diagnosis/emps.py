@@ -76,7 +76,7 @@ def idim_ls(trace: Trace, asymmetric: bool = False) -> IdimResult:
     kin, tau = benchmark_kinematics(trace)
     xd = decimate_columns(regressors(kin, asymmetric))
     yd = decimate_columns(tau)
-    theta: FloatArray = np.linalg.lstsq(xd, yd, rcond=None)[0]
+    theta = np.asarray(np.linalg.lstsq(xd, yd, rcond=None)[0], dtype=np.float64)
     return _scored(asymmetric, theta, xd, yd)
 
 
