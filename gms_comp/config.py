@@ -219,11 +219,49 @@ class BearingConfig:
 
 @dataclass(frozen=True)
 class StandConfig:
-    """How the balls are loaded and driven (the seed's test stand by default)."""
+    """How the balls are loaded and driven (the seed's test stand by default).
+
+    ``rolling_distance_per_travel`` is the distance the contact rolls over the
+    raceway per unit carriage travel. On the seed's stand the balls run free
+    between the raceway on the moving table and the counter-face held by the
+    z-axis, so their centres travel half the table travel and the contact rolls
+    0.5 per unit travel (docs/model.md, "Kinematics").
+    """
 
     ball_loads_N: tuple[float, ...] = field(metadata=positive())
     carriage_velocity_m_s: float = field(default=0.01, metadata=positive())
-    rolling_distance_per_travel: float = field(default=1.0, metadata=positive())
+    rolling_distance_per_travel: float = field(default=0.5, metadata=positive())
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Modelling and numerical choices of the ball model (see docs/model.md).
+
+    ``tangential_stiffness`` selects the reading of the seed's bristle stiffness
+    k_q: ``"seed"`` uses E' = 2 E* numerically per mm (the paper's numbers),
+    ``"mindlin"`` spreads Mindlin's tangential contact stiffness over the
+    contact area. The grid fields set the resolution of the transient model;
+    benchmarks/bench_physics.py shows where its results converge.
+    """
+
+    tangential_stiffness: Literal["seed", "mindlin"] = "seed"
+    steady_nodes_per_area: int = field(default=48, metadata=in_range(2, 1024))
+    stripes_per_area: int = field(default=6, metadata=in_range(1, 256))
+    bristles_per_stripe: int = field(default=24, metadata=in_range(2, 4096))
+    lambda_min: float = field(default=1.0, metadata=in_range(1.0, 1e6))
+    lambda_max: float = field(default=100.0, metadata=in_range(1.0, 1e6))
+    lambda_count: int = field(default=25, metadata=in_range(2, 1000))
+    stop_velocity_m_s: float = field(default=1e-6, metadata=positive())
+
+    def problems(self) -> list[tuple[str, str]]:
+        if self.lambda_max <= self.lambda_min:
+            return [
+                (
+                    "lambda_max",
+                    f"must be > lambda_min ({self.lambda_max:g} <= {self.lambda_min:g})",
+                )
+            ]
+        return []
 
 
 @dataclass(frozen=True)
@@ -233,6 +271,7 @@ class BallConfig:
     path: str
     bearing: BearingConfig
     stand: StandConfig
+    model: ModelConfig = ModelConfig()
 
 
 def load_ball_config(path: str | Path | None = None) -> BallConfig:
@@ -243,4 +282,5 @@ def load_ball_config(path: str | Path | None = None) -> BallConfig:
         path=str(p),
         bearing=parse_section(doc, p, "bearing", BearingConfig),
         stand=parse_section(doc, p, "stand", StandConfig),
+        model=parse_section(doc, p, "model", ModelConfig),
     )
