@@ -1,0 +1,151 @@
+"""The effects catalogue: forms from the spec, path quantities, batch == streaming."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gms_comp import effects as fx
+
+
+def _ctx(
+    t: np.ndarray, x: np.ndarray, f: np.ndarray | None = None, still: float = 1e-4
+) -> fx.Context:
+    v = np.gradient(x, t)
+    a = np.gradient(v, t)
+    return fx.Context.along(t, x, v, a, np.ones_like(t) if f is None else f, still)
+
+
+def _triangle(n: int = 2000, amp: float = 1e-3, dt: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+    t = np.arange(n) * dt
+    x = amp * (2 / np.pi) * np.arcsin(np.sin(2 * np.pi * t / (n * dt / 2)))
+    return t, x
+
+
+def test_path_distance_since_reversal_and_direction() -> None:
+    # +1 mm in 1000 samples, then back: reversal at the peak
+    t = np.arange(2001) * 1e-3
+    x = np.concatenate([np.linspace(0, 1e-3, 1001), np.linspace(1e-3, 0, 1001)[1:]])
+    v = np.where(np.arange(2001) <= 1000, 1.0, -1.0) * 1e-3
+    ctx = fx.Context.along(t, x, v, 0 * t, 0 * t)
+    assert ctx.direction[500] == 1 and ctx.direction[1500] == -1
+    assert ctx.distance_since_reversal_m[1000] == pytest.approx(1e-3, rel=1e-9)
+    assert ctx.distance_since_reversal_m[1500] == pytest.approx(0.5e-3 - 1e-6, rel=1e-6)
+
+
+def test_path_dwell_is_length_of_last_standstill() -> None:
+    dt = 1e-3
+    v = np.concatenate([np.full(100, 1e-3), np.zeros(300), np.full(100, 1e-3)])
+    x = np.cumsum(v) * dt
+    t = np.arange(v.size) * dt
+    ctx = fx.Context.along(t, x, v, 0 * t, 0 * t)
+    assert ctx.dwell_s[50] == 0.0  # no standstill yet
+    assert ctx.dwell_s[450] == pytest.approx(0.3, abs=1e-9)
+    assert ctx.moving[200] == 0.0 and ctx.moving[450] == 1.0
+    assert ctx.distance_since_start_m[450] == pytest.approx(50 * 1e-6, rel=1e-6)
+
+
+def test_ripple_coefficients_round_trip() -> None:
+    e = fx.PositionRipple(1.5, 2.5e-3, 0.7)
+    back = fx.PositionRipple.from_coefficients(e.coefficients(), e.shape())
+    assert isinstance(back, fx.PositionRipple)
+    assert back.amplitude_N == pytest.approx(1.5)
+    assert back.phase_rad == pytest.approx(0.7)
+
+
+def test_ripple_form_matches_spec() -> None:
+    t = np.linspace(0, 1, 500)
+    x = 0.01 * t
+    ctx = _ctx(t, x, 0 * t)
+    e = fx.PositionRipple(2.0, 2.5e-3, 0.3)
+    np.testing.assert_allclose(
+        e.apply(ctx, 0 * t), 2.0 * np.sin(2 * np.pi * x / 2.5e-3 + 0.3), atol=1e-12
+    )
+
+
+def test_stribeck_form_scales_the_gms_force() -> None:
+    t = np.linspace(0, 1, 200)
+    f = np.full_like(t, 10.0)
+    ctx = fx.Context.along(t, 0 * t, np.full_like(t, 1e-3), 0 * t, f)
+    out = fx.Stribeck(1.5, 1e-3).apply(ctx, f)
+    np.testing.assert_allclose(out, 10.0 * (1 + 0.5 * math.exp(-1.0)))
+
+
+def test_drift_limits() -> None:
+    t = np.linspace(0, 100, 1000)
+    f = np.full_like(t, 4.0)
+    ctx = fx.Context.along(t, 1e-3 * t, np.full_like(t, 1e-3), 0 * t, f)
+    out = fx.Drift(0.25, 5.0).apply(ctx, f)
+    assert out[0] == pytest.approx(4.0)
+    assert out[-1] == pytest.approx(5.0, rel=1e-6)
+
+
+def test_reversal_transient_sign_and_decay() -> None:
+    t, x = _triangle()
+    ctx = _ctx(t, x, 0 * t)
+    d = fx.ReversalTransient(3.0, 1e-5).apply(ctx, 0 * t)
+    assert np.all(d * ctx.direction >= 0)  # overshoot along the motion
+    assert np.max(np.abs(d)) == pytest.approx(3.0, rel=0.05)
+    far = ctx.distance_since_reversal_m > 1e-4
+    assert np.max(np.abs(d[far])) < 3.0 * math.exp(-10) * 1.01
+
+
+def test_sensor_lowpass_keeps_dc_and_lags() -> None:
+    t = np.arange(3000) * 1e-3
+    ctx = _ctx(t, 1e-3 * np.sin(t))
+    step = (t > 1.0).astype(float)
+    y = fx.SensorLowpass(10.0, 2).apply(ctx, step)
+    assert y[-1] == pytest.approx(1.0, abs=1e-6)
+    assert y[1010] < 0.5  # a 10 Hz filter has not risen 10 ms after the step
+
+
+def test_dict_round_trip_and_bad_entries() -> None:
+    for e in (fx.Viscous(12.0), fx.SensorLowpass(30.0, 2), fx.DwellTime(0.1, 1.0, 2e-5)):
+        assert fx.effect_from_dict(fx.effect_to_dict(e)) == e
+    with pytest.raises(ValueError, match="unknown effect 'magic'"):
+        fx.effect_from_dict({"effect": "magic", "parameters": {}})
+    with pytest.raises(ValueError, match="parameters must be"):
+        fx.effect_from_dict({"effect": "offset", "parameters": {"F0": 1.0}})
+    with pytest.raises(ValueError, match="finite number"):
+        fx.effect_from_dict({"effect": "offset", "parameters": {"offset_N": math.nan}})
+
+
+def test_catalogue_names_match_spec() -> None:
+    assert set(fx.CATALOGUE) == {
+        "viscous", "stribeck", "dwell_time", "position_ripple", "offset",
+        "reversal_transient", "drift", "inertia", "sensor_lowpass",
+    }  # fmt: skip
+
+
+ALL = [
+    fx.Viscous(30.0),
+    fx.Stribeck(1.3, 2e-3),
+    fx.DwellTime(0.2, 0.05, 5e-5),
+    fx.PositionRipple(0.5, 2.5e-4, 1.0),
+    fx.Offset(-0.4),
+    fx.ReversalTransient(0.8, 3e-5),
+    fx.Drift(0.1, 0.5),
+    fx.Inertia(2.0),
+    fx.SensorLowpass(40.0, 2),
+]
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(min_value=0, max_value=2**32 - 1))
+def test_streaming_equals_batch(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = 400
+    t = np.arange(n) * 1e-3
+    v = np.repeat(rng.normal(0, 2e-3, n // 40), 40) * (rng.random(n // 40).repeat(40) > 0.3)
+    x = np.cumsum(v) * 1e-3
+    a = np.gradient(v, t)
+    f = np.tanh(x / 1e-5) * 5.0
+    ctx = fx.Context.along(t, x, v, a, f)
+    batch = fx.apply_extensions(ALL, ctx)
+    stream = fx.ExtensionStream(ALL, 1e-3)
+    out = np.array([stream.step(t[i], x[i], v[i], a[i], f[i]) for i in range(n)])
+    np.testing.assert_allclose(out, batch, rtol=1e-9, atol=1e-9)
