@@ -27,7 +27,7 @@ from typing import Any, ClassVar
 
 import numba
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
 FloatArray = NDArray[np.float64]
@@ -112,11 +112,11 @@ class Context:
     @classmethod
     def along(
         cls,
-        time_s: FloatArray,
-        position_m: FloatArray,
-        velocity_m_s: FloatArray,
-        acceleration_m_s2: FloatArray,
-        gms_force_N: FloatArray,
+        time_s: ArrayLike,
+        position_m: ArrayLike,
+        velocity_m_s: ArrayLike,
+        acceleration_m_s2: ArrayLike,
+        gms_force_N: ArrayLike,
         standstill_speed_m_s: float = DEFAULT_STANDSTILL_SPEED_M_S,
     ) -> Context:
         """The context of a whole trajectory."""
