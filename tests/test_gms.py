@@ -1,0 +1,222 @@
+"""Properties of the GMS model against analytic expectations (Al-Bender et al. 2005)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gms_comp.gms import GmsParams, GmsStream, simulate
+
+SPEED_m_s = 1e-2  # far above the level transition speed: the level is slip_level
+STEP_m = 2e-8
+
+
+def elements(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return 10 ** rng.uniform(5, 7, n), rng.uniform(0.01, 0.1, n)
+
+
+def path(extrema: list[float], step_m: float = STEP_m) -> tuple[np.ndarray, np.ndarray]:
+    """Straight segments between extrema at constant speed; each extremum is sampled."""
+    xs = [np.array([extrema[0]])]
+    vs = [np.array([0.0])]
+    for a, b in zip(extrema[:-1], extrema[1:], strict=True):
+        n = max(1, math.ceil(abs(b - a) / step_m))
+        xs.append(np.linspace(a, b, n + 1)[1:])
+        vs.append(np.full(n, math.copysign(SPEED_m_s, b - a)))
+    return np.concatenate(xs), np.concatenate(vs)
+
+
+def virgin(k: np.ndarray, w: np.ndarray, x: float) -> float:
+    """sum_i sign(x) min(k_i |x|, W_i): the independent expectation."""
+    return math.copysign(float(np.sum(np.minimum(k * abs(x), w))), x)
+
+
+element_sets = st.builds(elements, st.integers(1, 12), st.integers(0, 10_000))
+
+
+@settings(max_examples=40, deadline=None)
+@given(element_sets, st.floats(1e-8, 2e-6), st.floats(0.5, 2.0))
+def test_virgin_curve_is_sum_of_clipped_elements(
+    kw: tuple[np.ndarray, np.ndarray], end_m: float, slip_level: float
+) -> None:
+    k, w = kw
+    p = GmsParams(k, w, slip_level=slip_level)
+    x, v = path([0.0, end_m])
+    force, _ = simulate(p, x, v)
+    expected = [virgin(k, slip_level * w, xi) for xi in x[1:]]
+    np.testing.assert_allclose(force[1:], expected, rtol=1e-9, atol=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(element_sets, st.floats(1e-8, 3e-6), st.floats(0.1, 2.0))
+def test_masing_reversal_curve_is_virgin_curve_scaled_by_two(
+    kw: tuple[np.ndarray, np.ndarray], turn_m: float, back_fraction: float
+) -> None:
+    k, w = kw
+    x, v = path([0.0, turn_m, turn_m * (1 - back_fraction)])
+    force, _ = simulate(GmsParams(k, w), x, v)
+    after = x <= x[np.argmax(x)]
+    after[: np.argmax(x)] = False
+    f_turn = virgin(k, w, turn_m)
+    expected = [f_turn - 2 * virgin(k, w, (turn_m - xi) / 2) for xi in x[after]]
+    np.testing.assert_allclose(force[after], expected, rtol=1e-9, atol=1e-12)
+
+
+def test_non_local_memory_force_depends_on_past_extremum() -> None:
+    k, w = elements(8, 1)
+    end_m = 0.2e-6
+    forces = []
+    for turn_m in (0.6e-6, 1.5e-6):
+        x, v = path([0.0, turn_m, end_m])
+        f, _ = simulate(GmsParams(k, w), x, v)
+        expected = virgin(k, w, turn_m) - 2 * virgin(k, w, (turn_m - end_m) / 2)
+        assert f[-1] == pytest.approx(expected, rel=1e-9)
+        forces.append(f[-1])
+    assert abs(forces[0] - forces[1]) > 1e-3 * max(abs(f) for f in forces)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    element_sets,
+    st.floats(-1.0, 1.0),
+    st.floats(0.05, 0.95),
+    st.floats(0.05, 0.95),
+    st.floats(1.0, 2.0),
+)
+def test_inner_loop_is_wiped_out_and_closes_at_its_return_point(
+    kw: tuple[np.ndarray, np.ndarray], b: float, p_frac: float, q_frac: float, c_over: float
+) -> None:
+    """Path b -> p -> q -> p -> c (inner loop p, q inside [b, c]) ends like b -> c."""
+    k, w = kw
+    scale = 2e-6
+    start, b_m = -3 * scale, b * scale  # start saturated: a well defined state
+    c_m = b_m + c_over * scale
+    p_m = b_m + p_frac * (c_m - b_m)
+    q_m = b_m + q_frac * (p_m - b_m)
+    x_loop, v_loop = path([start, b_m, p_m, q_m, c_m])
+    x_direct, v_direct = path([start, b_m, c_m])
+    f_loop, s_loop = simulate(GmsParams(k, w), x_loop, v_loop)
+    f_direct, s_direct = simulate(GmsParams(k, w), x_direct, v_direct)
+    np.testing.assert_allclose(s_loop.element_force_N, s_direct.element_force_N, atol=1e-12)
+    assert f_loop[-1] == pytest.approx(f_direct[-1], abs=1e-12)
+    # Return-point memory: back at p the force equals the force first reached there.
+    at_p = np.flatnonzero(np.isclose(x_loop, p_m, rtol=0, atol=1e-15))
+    assert f_loop[at_p[-1]] == pytest.approx(f_loop[at_p[0]], abs=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    element_sets,
+    st.lists(st.floats(-3e-6, 3e-6), min_size=2, max_size=6),
+    st.floats(0.5, 2.0),
+    st.floats(0.0, 5.0),
+)
+def test_closed_loops_dissipate(
+    kw: tuple[np.ndarray, np.ndarray], extrema: list[float], slip_level: float, viscous: float
+) -> None:
+    k, w = kw
+    p = GmsParams(k, w, slip_level=slip_level, viscous_Ns_per_m=viscous)
+    cycle = [0.0, *extrema, 0.0]
+    x, v = path(cycle + cycle[1:], step_m=1e-9)
+    force, _ = simulate(p, x, v)
+    second = slice(len(x) // 2, None)  # after one cycle the state is periodic
+    xs, fs = x[second], force[second]
+    work_J = float(np.sum(0.5 * (fs[1:] + fs[:-1]) * np.diff(xs)))
+    scale_J = float(np.sum(w)) * slip_level * 1e-9  # trapezoid error at the kinks
+    assert work_J >= -scale_J * len(extrema)
+
+
+def test_level_drops_at_a_stop_and_returns_on_restart() -> None:
+    """The seed's peaks: a fully slipping contact loses the factor C_v at rest."""
+    k, w = elements(6, 2)
+    c_v = 1.2
+    p = GmsParams(k, w, slip_level=c_v)
+    x = np.array([0.0, 1e-5, 1e-5, 1.01e-5])
+    v = np.array([0.0, SPEED_m_s, 0.0, SPEED_m_s])
+    force, _ = simulate(p, x, v)
+    assert force[1] == pytest.approx(c_v * w.sum())
+    assert force[2] == pytest.approx(w.sum())
+    assert force[3] == pytest.approx(c_v * w.sum())
+
+
+@pytest.mark.parametrize("attraction_per_s", [30.0, 300.0, 3000.0])
+def test_finite_attraction_relaxes_exponentially_in_time(attraction_per_s: float) -> None:
+    """After a stop the slipping element is drawn back to C_v W at rate C / C_v."""
+    c_v, w, speed = 1.5, 0.1, 1e-3
+    p = GmsParams([1e9], [w], slip_level=c_v, attraction_rate_per_s=attraction_per_s)
+    step = 1e-7
+    x_go = np.arange(1, 2001) * step
+    x = np.concatenate([[0.0, 1e-5, 1e-5], 1e-5 + x_go])
+    v = np.concatenate([[0.0, speed, 0.0], np.full(x_go.size, speed)])
+    force, _ = simulate(p, x, v)
+    expected = c_v * w - (c_v - 1) * w * np.exp(-attraction_per_s * x_go / (c_v * speed))
+    np.testing.assert_allclose(force[3:], expected, rtol=1e-9)
+
+
+def test_rate_independence_as_attraction_grows() -> None:
+    """The same path at two speeds: the force difference vanishes as C -> infinity."""
+    k, w = elements(8, 3)
+    x, _ = path([0.0, 2e-6, 2e-6, 3e-6, 1e-6, 1e-6, 4e-6])
+    direction = np.sign(np.diff(x, prepend=x[0]))
+    gaps = []
+    for rate in (1e5, 1e6, 1e7, 1e8, math.inf):
+        p = GmsParams(k, w, slip_level=1.3, attraction_rate_per_s=rate)
+        f_slow, _ = simulate(p, x, direction * 1e-2)
+        f_fast, _ = simulate(p, x, direction * 1e-1)
+        gaps.append(float(np.max(np.abs(f_slow - f_fast))))
+    assert gaps == sorted(gaps, reverse=True)
+    assert gaps[0] > 1e-3 * w.sum()
+    assert gaps[-1] == 0.0
+
+
+def test_viscous_term_adds_sigma2_v() -> None:
+    k, w = elements(4, 4)
+    x, v = path([0.0, 1e-5])
+    plain, _ = simulate(GmsParams(k, w), x, v)
+    damped, _ = simulate(GmsParams(k, w, viscous_Ns_per_m=7.0), x, v)
+    np.testing.assert_allclose(damped - plain, 7.0 * v, atol=1e-12)
+
+
+def test_stream_equals_batch_and_batch_continues_from_state() -> None:
+    k, w = elements(16, 5)
+    p = GmsParams(
+        k,
+        w,
+        slip_level=1.2,
+        transition_velocity_m_s=1e-3,
+        attraction_rate_per_s=500.0,
+        viscous_Ns_per_m=0.3,
+    )
+    t = np.linspace(0, 1, 3001)
+    x = 2e-6 * np.sin(2 * np.pi * 3 * t) * np.exp(-t)
+    v = np.gradient(x, t)
+    whole, _ = simulate(p, x, v)
+    first, state = simulate(p, x[:1000], v[:1000])
+    rest, _ = simulate(p, x[1000:], v[1000:], state)
+    stream = GmsStream(p)
+    stepped = [stream.step(float(a), float(b)) for a, b in zip(x, v, strict=True)]
+    np.testing.assert_array_equal(np.concatenate([first, rest]), whole)
+    np.testing.assert_allclose(stepped, whole, rtol=0, atol=1e-15)
+    stream.reset()
+    assert stream.step(float(x[5]), 0.0) == 0.0
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"stiffness_N_per_m": [-1.0]}, "stiffness_N_per_m"),
+        ({"limit_N": [-0.1]}, "limit_N"),
+        ({"slip_level": 0.0}, "slip_level"),
+        ({"attraction_rate_per_s": math.nan}, "attraction_rate_per_s"),
+        ({"viscous_Ns_per_m": -1.0}, "viscous_Ns_per_m"),
+    ],
+)
+def test_bad_parameters_are_refused(kwargs: dict[str, object], field: str) -> None:
+    args: dict[str, object] = {"stiffness_N_per_m": [1e6], "limit_N": [0.1], **kwargs}
+    with pytest.raises(ValueError, match=field):
+        GmsParams(**args)  # type: ignore[arg-type]
