@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -24,7 +25,7 @@ def path(extrema: list[float], step_m: float = STEP_m) -> tuple[np.ndarray, np.n
     """Straight segments between extrema at constant speed; each extremum is sampled."""
     xs = [np.array([extrema[0]])]
     vs = [np.array([0.0])]
-    for a, b in zip(extrema[:-1], extrema[1:], strict=True):
+    for a, b in itertools.pairwise(extrema):
         n = max(1, math.ceil(abs(b - a) / step_m))
         xs.append(np.linspace(a, b, n + 1)[1:])
         vs.append(np.full(n, math.copysign(SPEED_m_s, b - a)))
@@ -148,7 +149,9 @@ def test_level_drops_at_a_stop_and_returns_on_restart() -> None:
 def test_finite_attraction_relaxes_exponentially_in_time(attraction_per_s: float) -> None:
     """After a stop the slipping element is drawn back to C_v W at rate C / C_v."""
     c_v, w, speed = 1.5, 0.1, 1e-3
-    p = GmsParams([1e9], [w], slip_level=c_v, attraction_rate_per_s=attraction_per_s)
+    p = GmsParams(
+        np.array([1e9]), np.array([w]), slip_level=c_v, attraction_rate_per_s=attraction_per_s
+    )
     step = 1e-7
     x_go = np.arange(1, 2001) * step
     x = np.concatenate([[0.0, 1e-5, 1e-5], 1e-5 + x_go])
