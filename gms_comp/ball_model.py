@@ -15,6 +15,8 @@ across their whole length (Eq. 12). docs/model.md derives every step.
 
 from __future__ import annotations
 
+import functools
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -128,7 +130,7 @@ def area_nodes(bounds: tuple[float, ...], nodes_per_area: int) -> tuple[FloatArr
     """
     t, w = np.polynomial.legendre.leggauss(nodes_per_area)
     ys, ws = [], []
-    for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+    for lo, hi in itertools.pairwise(bounds):
         half = 0.5 * (hi - lo)
         ys.append(lo + half * (t + 1.0))
         ws.append(half * w)
@@ -211,12 +213,14 @@ def rolling_lines(model: StripeModel, lam: float, nodes_per_area: int) -> tuple[
     return beta, xi0_from_beta(beta, model.contact.b_m, model.ball_radius_m)
 
 
+@functools.lru_cache(maxsize=64)
 def steady_state(cfg: BallConfig, normal_load_N: float) -> SteadyResult:
     """Search the rolling lines over beta and lambda (Eq. 15) and the sliding force.
 
     For each lambda of the configured grid the minimising beta is found; the
     reported rolling line is the one at rho = R (lambda = R / b), where M times
-    the ball's angular velocity is the power dissipated by slip.
+    the ball's angular velocity is the power dissipated by slip. Results are
+    cached per (config, load): balls of equal load share one search.
     """
     model = stripe_model(cfg, normal_load_N)
     n = cfg.model.steady_nodes_per_area

@@ -34,8 +34,9 @@ def full_slip(model: bm.StripeModel) -> bm.StripeModel:
 
 
 def test_heathcote_constant() -> None:
-    assert HEATHCOTE_BETA**3 - 3 * HEATHCOTE_BETA + 1 == pytest.approx(0.0, abs=1e-14)
-    assert HEATHCOTE_BETA == pytest.approx(0.347296, abs=1e-6)
+    beta = HEATHCOTE_BETA
+    assert beta**3 - 3 * beta + 1 == pytest.approx(0.0, abs=1e-14)
+    assert beta == pytest.approx(0.347296, abs=1e-6)
 
 
 def test_table1_rolling_lines(cfg: BallConfig) -> None:
@@ -122,9 +123,7 @@ def test_torque_quadrature_matches_adaptive(model: bm.StripeModel) -> None:
     expected, _ = integrate.quad(
         integrand, 0.0, b, points=model.area_bounds_m(beta)[1:4], limit=200, epsabs=0
     )
-    assert bm.friction_torque_Nm(model, beta, lam, NODES) == pytest.approx(
-        2 * expected, rel=1e-7
-    )
+    assert bm.friction_torque_Nm(model, beta, lam, NODES) == pytest.approx(2 * expected, rel=1e-7)
 
 
 def test_mindlin_reading(cfg: BallConfig) -> None:

@@ -1,0 +1,133 @@
+"""Every bad physics config is refused by `gms-comp model` with one line and exit code 2."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from gms_comp.cli import main
+from gms_comp.config import default_config_path, load_ball_config
+
+DEFAULT = default_config_path().read_text()
+
+
+def _edit(text: str, key: str, value: str) -> str:
+    """Replace the value of ``key = ...`` (first occurrence) in a TOML text."""
+    pattern = re.compile(rf"^{re.escape(key)}\s*=.*$", re.MULTILINE)
+    assert pattern.search(text), key
+    return pattern.sub(f"{key} = {value}", text, count=1)
+
+
+def _drop(text: str, key: str) -> str:
+    return re.sub(rf"^{re.escape(key)}\s*=.*\n", "", text, count=1, flags=re.MULTILINE)
+
+
+BAD_VALUES = [
+    ("raceway_radius_m", "3.175e-3", "bearing.raceway_radius_m", "must be > ball_radius_m"),
+    ("raceway_radius_m", "3.0e-3", "bearing.raceway_radius_m", "must be > ball_radius_m"),
+    ("ball_radius_m", "0.0", "bearing.ball_radius_m", "must be > 0"),
+    ("ball_radius_m", "-1e-3", "bearing.ball_radius_m", "must be > 0"),
+    ("raceway_radius_m", "-3.5e-3", "bearing.raceway_radius_m", "must be > 0"),
+    ("youngs_modulus_ball_Pa", "0", "bearing.youngs_modulus_ball_Pa", "must be > 0"),
+    ("youngs_modulus_raceway_Pa", "-2e11", "bearing.youngs_modulus_raceway_Pa", "must be > 0"),
+    ("poisson_ratio_ball", "0.5", "bearing.poisson_ratio_ball", "must be in [0, 0.5)"),
+    ("poisson_ratio_raceway", "-0.1", "bearing.poisson_ratio_raceway", "must be in [0, 0.5)"),
+    ("friction_coefficient", "0.0", "bearing.friction_coefficient", "must be > 0"),
+    ("ball_loads_N", "[50.0, 0.0]", "stand.ball_loads_N", "must be > 0"),
+    ("ball_loads_N", "[-50.0]", "stand.ball_loads_N", "must be > 0"),
+    ("ball_loads_N", "[]", "stand.ball_loads_N", "non-empty array"),
+    ("ball_radius_m", '"3 mm"', "bearing.ball_radius_m", "must be a number"),
+    ("ball_radius_m", "true", "bearing.ball_radius_m", "must be a number"),
+    ("ball_radius_m", "nan", "bearing.ball_radius_m", "must be finite"),
+    ("ball_loads_N", "50.0", "stand.ball_loads_N", "non-empty array"),
+    ("ball_loads_N", '["a"]', "stand.ball_loads_N[0]", "must be a number"),
+    ("tangential_stiffness", '"hooke"', "model.tangential_stiffness", "must be one of"),
+    ("bristles_per_stripe", "2.5", "model.bristles_per_stripe", "must be an integer"),
+    ("stripes_per_area", "0", "model.stripes_per_area", "must be in"),
+    ("lambda_max", "0.5", "model.lambda_max", "must be in"),
+    ("lambda_max", "1.0", "model.lambda_max", "must be > lambda_min"),
+    ("stop_velocity_m_s", "0.0", "model.stop_velocity_m_s", "must be > 0"),
+]
+
+
+def _run_bad(tmp_path: Path, text: str, capsys: pytest.CaptureFixture[str]) -> tuple[Path, str]:
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    assert main(["model", str(path)]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    return path, lines[0]
+
+
+@pytest.mark.parametrize(("key", "value", "where", "reason"), BAD_VALUES)
+def test_bad_value_is_refused(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    key: str,
+    value: str,
+    where: str,
+    reason: str,
+) -> None:
+    path, line = _run_bad(tmp_path, _edit(DEFAULT, key, value), capsys)
+    assert str(path) in line
+    assert where in line
+    assert reason in line
+
+
+@pytest.mark.parametrize(
+    "key", ["ball_radius_m", "raceway_radius_m", "youngs_modulus_ball_Pa", "ball_loads_N"]
+)
+def test_missing_key_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], key: str
+) -> None:
+    path, line = _run_bad(tmp_path, _drop(DEFAULT, key), capsys)
+    assert str(path) in line and key in line and "missing required key" in line
+
+
+def test_unknown_key_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    text = DEFAULT.replace("[bearing]\n", "[bearing]\nball_radius_mm = 3.175\n")
+    path, line = _run_bad(tmp_path, text, capsys)
+    assert str(path) in line and "bearing.ball_radius_mm" in line and "unknown key" in line
+
+
+def test_unknown_section_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path, line = _run_bad(tmp_path, DEFAULT + "\n[bearings]\nx = 1\n", capsys)
+    assert str(path) in line and "bearings" in line and "unknown section" in line
+
+
+@pytest.mark.parametrize(
+    "text", ["[bearing\nball_radius_m = 1", "ball_radius_m = = 3", "\x00\x01binary"]
+)
+def test_unreadable_toml_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str
+) -> None:
+    path, line = _run_bad(tmp_path, text, capsys)
+    assert str(path) in line and "not valid TOML" in line
+
+
+def test_missing_file_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["model", str(tmp_path / "nope.toml")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "nope.toml" in err and "file not found" in err
+
+
+def test_model_section_is_optional(tmp_path: Path) -> None:
+    text = DEFAULT.split("[model]")[0]
+    path = tmp_path / "no_model.toml"
+    path.write_text(text)
+    cfg = load_ball_config(path)
+    assert cfg.model.tangential_stiffness == "seed"
+
+
+def test_default_is_table1() -> None:
+    cfg = load_ball_config()
+    assert cfg.bearing.ball_radius_m == 3.175e-3
+    assert cfg.bearing.raceway_radius_m == 3.5e-3
+    assert cfg.stand.ball_loads_N == (50.0,) * 4
+    assert cfg.bearing.slip_exaggeration == 1.2
+    assert cfg.stand.rolling_distance_per_travel == 0.5
