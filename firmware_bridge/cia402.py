@@ -1,0 +1,228 @@
+"""Profile ``cia402``: a standard servo drive, feedforward in the torque offset 0x60B2.
+
+The drive's EDS (``cia402_drive.eds``, shipped in the package) is the source of
+the COB-IDs, the RPDO mapping and the supervision times. 0x60B2 is INTEGER16 in
+per mille of the rated torque 0x6076 (rated force for a linear motor); since the
+force is the force constant times the current, that is per mille of the rated
+current 0x6075, which is how the compensator scales its current.
+
+RPDO1 has transmission type 1: the drive takes the RPDO received since the last
+SYNC and applies it at the next SYNC. A window holding more than one distinct
+RPDO means a frame from another cycle crept in; the drive then applies none.
+"""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+from typing import Any
+
+import can
+import canopen
+from canopen.objectdictionary import ObjectDictionary
+
+from gms_comp.errors import BusError
+
+from .settings import CanConfig, cycles_within
+from .supervisor import RejectCounts, Supervisor, Verdict
+
+TORQUE_OFFSET = 0x60B2
+RPDO1_COMM, RPDO1_MAP = 0x1400, 0x1600
+ABORT_CONNECTION_OPTION = 0x6007
+_INT16 = struct.Struct("<h")
+_HEARTBEAT_OPERATIONAL = 0x05
+PER_MILLE = 1000
+
+# EMCY error codes (CiA 301 communication errors)
+EMCY_RPDO_TIMEOUT = 0x8250
+EMCY_HEARTBEAT = 0x8130
+EMCY_SYNC_LOST = 0x8100
+ABORT_ACTIONS = {0: "no_action", 1: "fault", 2: "disable_voltage", 3: "quick_stop"}
+
+
+def default_eds_path() -> Path:
+    return Path(__file__).with_name("cia402_drive.eds")
+
+
+def load_drive_od(node_id: int, eds_path: str | Path | None = None) -> ObjectDictionary:
+    path = Path(eds_path) if eds_path is not None else default_eds_path()
+    try:
+        return canopen.import_od(str(path), node_id)
+    except (OSError, KeyError, ValueError) as err:
+        raise BusError(f"{path}: not a usable drive EDS ({err})") from err
+
+
+def od_default(od: ObjectDictionary, index: int, subindex: int | None = None) -> int:
+    """Default value of an object of the EDS."""
+    entry: Any = od[index] if subindex is None else od[index][subindex]  # type: ignore[index]
+    return int(entry.default)
+
+
+def read_object(node: canopen.LocalNode, index: int, subindex: int | None = None) -> int:
+    return int(_sdo_entry(node, index, subindex).raw)
+
+
+def write_object(node: canopen.LocalNode, index: int, subindex: int | None, value: int) -> None:
+    _sdo_entry(node, index, subindex).raw = value
+
+
+def _sdo_entry(node: canopen.LocalNode, index: int, subindex: int | None) -> Any:
+    entry: Any = node.sdo[index]
+    return entry if subindex is None else entry[subindex]
+
+
+class Cia402Codec:
+    """Frames of the compensator side, laid out as the drive's EDS says."""
+
+    def __init__(self, cfg: CanConfig, od: ObjectDictionary) -> None:
+        mapping = od_default(od, RPDO1_MAP, 1)
+        if mapping != (TORQUE_OFFSET << 16) | 0x10:
+            raise BusError(f"RPDO1 must map 0x60B2 (16 bit), the EDS maps 0x{mapping:08X}")
+        if od_default(od, RPDO1_COMM, 2) != 1:
+            raise BusError("RPDO1 must have transmission type 1 (synchronous, every SYNC)")
+        self.rpdo_cob_id = od_default(od, RPDO1_COMM, 1) & 0x7FF
+        self.sync_cob_id = od_default(od, 0x1005) & 0x7FF
+        self.heartbeat_cob_id = 0x700 + cfg.compensator_node_id
+        self.rated_current_A = cfg.rated_current_A
+        self.limit_raw = 2**15 - 1
+
+    def to_raw(self, current_A: float) -> int:
+        return round(PER_MILLE * current_A / self.rated_current_A)
+
+    def from_raw(self, raw: int) -> float:
+        return raw * self.rated_current_A / PER_MILLE
+
+    def rpdo_frame(self, raw: int) -> can.Message:
+        return can.Message(
+            arbitration_id=self.rpdo_cob_id, data=_INT16.pack(raw), is_extended_id=False
+        )
+
+    def sync_frame(self) -> can.Message:
+        return can.Message(arbitration_id=self.sync_cob_id, data=b"", is_extended_id=False)
+
+    def heartbeat_frame(self) -> can.Message:
+        return can.Message(
+            arbitration_id=self.heartbeat_cob_id,
+            data=bytes([_HEARTBEAT_OPERATIONAL]),
+            is_extended_id=False,
+        )
+
+
+def configure_drive(node: canopen.LocalNode, cfg: CanConfig) -> None:
+    """Write the supervision times of ``cfg`` into the drive's object dictionary,
+    as an NC would by SDO at start-up."""
+    write_object(node, 0x1006, None, round(cfg.cycle_period_s * 1e6))
+    write_object(node, RPDO1_COMM, 5, max(1, round(cfg.rx_timeout_s * 1e3)))
+    consumer_ms = max(1, round(1.5 * cfg.heartbeat_period_s * 1e3))
+    write_object(node, 0x1016, 1, (cfg.compensator_node_id << 16) | consumer_ms)
+    write_object(node, 0x6075, None, round(cfg.rated_current_A * 1e3))
+
+
+class Cia402Receiver:
+    """The drive side: buffer RPDOs until SYNC, supervise RPDO, SYNC and heartbeat."""
+
+    def __init__(
+        self,
+        node: canopen.LocalNode,
+        codec: Cia402Codec,
+        cfg: CanConfig,
+        limit_raw: int,
+    ) -> None:
+        self.node = node
+        self.codec = codec
+        self.cycle_period_s = cfg.cycle_period_s
+        self.counts = RejectCounts()
+        event_timer_s = read_object(node, RPDO1_COMM, 5) * 1e-3
+        self.supervisor = Supervisor(
+            limit_raw, cycles_within(event_timer_s, cfg.cycle_period_s), cfg.ramp_cycles
+        )
+        self.sync_timeout_s = 1.5 * read_object(node, 0x1006) * 1e-6
+        consumer = read_object(node, 0x1016, 1)
+        self.heartbeat_producer = 0x700 + ((consumer >> 16) & 0x7F)
+        self.heartbeat_timeout_s = (consumer & 0xFFFF) * 1e-3
+        self.window: list[bytes] = []
+        self.fresh: tuple[int, bytes] | None = None
+        self.applied_data: bytes | None = None
+        self.last_sync_s: float | None = None
+        self.last_heartbeat_s: float | None = None
+        self.active_faults: set[int] = set()
+        self.emcy_sent: list[int] = []
+
+    def on_message(self, msg: can.Message, now_s: float) -> None:
+        cob_id = msg.arbitration_id
+        if msg.is_error_frame:
+            self.counts.add(Verdict.CORRUPT)  # the controller's CRC caught a damaged frame
+        elif cob_id == self.codec.rpdo_cob_id:
+            if len(msg.data) == _INT16.size:
+                self.window.append(bytes(msg.data))
+            else:
+                self.counts.add(Verdict.CORRUPT)
+        elif cob_id == self.codec.sync_cob_id:
+            self.last_sync_s = now_s
+            self._close_window()
+        elif cob_id == self.heartbeat_producer:
+            self.last_heartbeat_s = now_s
+        else:  # SDO, NMT: the canopen LocalNode answers
+            self.node.network.notify(cob_id, msg.data, msg.timestamp)
+
+    def _close_window(self) -> None:
+        window, self.window = self.window, []
+        if not window:
+            return
+        if all(data == window[0] for data in window):
+            self.counts.add(Verdict.ACCEPTED)
+            for _ in window[1:]:
+                self.counts.add(Verdict.DUPLICATE)
+            self.fresh = (_INT16.unpack(window[0])[0], window[0])
+        else:
+            for _ in window:
+                self.counts.add(Verdict.OUT_OF_ORDER)
+
+    def tick(self, now_s: float) -> int:
+        """One drive cycle at time ``now_s``; returns the applied 0x60B2 value."""
+        self._supervise(now_s)
+        # a lost SYNC or heartbeat voids the link; a lost RPDO ends with the next one
+        fresh = None if self.active_faults - {EMCY_RPDO_TIMEOUT} else self.fresh
+        self.fresh = None
+        was_lost = self.supervisor.link_lost
+        out = self.supervisor.tick(fresh[0] if fresh else None)
+        self.applied_data = fresh[1] if fresh else None
+        if self.supervisor.link_lost and not was_lost:
+            self._raise_fault(EMCY_RPDO_TIMEOUT)
+        elif fresh:
+            self.active_faults.discard(EMCY_RPDO_TIMEOUT)
+        write_object(self.node, TORQUE_OFFSET, None, out)
+        return out
+
+    def _supervise(self, now_s: float) -> None:
+        if self._overdue(self.last_sync_s, self.sync_timeout_s, now_s):
+            self._raise_fault(EMCY_SYNC_LOST)
+        else:
+            self.active_faults.discard(EMCY_SYNC_LOST)
+        if self._overdue(self.last_heartbeat_s, self.heartbeat_timeout_s, now_s):
+            self._raise_fault(EMCY_HEARTBEAT)
+        else:
+            self.active_faults.discard(EMCY_HEARTBEAT)
+
+    @staticmethod
+    def _overdue(last_s: float | None, timeout_s: float, now_s: float) -> bool:
+        # before the first message there is nothing to supervise yet
+        return last_s is not None and now_s - last_s > timeout_s
+
+    def _raise_fault(self, code: int) -> None:
+        if code in self.active_faults:
+            return
+        self.active_faults.add(code)
+        self.emcy_sent.append(code)
+        self.node.emcy.send(code, register=0x11)  # error register: generic + communication
+
+    @property
+    def abort_action(self) -> str:
+        """Drive reaction to a lost link, from 0x6007 (the offset ramps to zero in any case)."""
+        return ABORT_ACTIONS.get(read_object(self.node, ABORT_CONNECTION_OPTION), "manufacturer")
+
+    @property
+    def state(self) -> str:
+        if self.active_faults or self.supervisor.link_lost:
+            return self.abort_action if self.active_faults else "waiting"
+        return "operation_enabled"

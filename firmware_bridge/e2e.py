@@ -1,0 +1,198 @@
+"""Profile ``e2e``: custom drive firmware, frames defined in ``gms_ff.dbc``.
+
+The DBC is the single source of truth for the layout, the scaling and the
+E2E data IDs (message attribute ``E2EDataId``). Frames follow the AUTOSAR E2E
+profile 5 layout: CRC-16 in bytes 0..1 over bytes 2..7 and the data ID, an
+8-bit alive counter in byte 2. cantools encodes (``strict=True``, after the
+caller has saturated) and decodes; :mod:`cantools.autosar` computes the CRC.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import can
+import cantools
+from cantools.autosar import apply_profile5_crc, check_profile5_crc
+from cantools.database.can import Message
+
+from gms_comp.errors import BusError
+
+from .supervisor import RejectCounts, Supervisor, Verdict
+
+COUNTER_MODULUS = 256
+
+
+def default_dbc_path() -> Path:
+    return Path(__file__).with_name("gms_ff.dbc")
+
+
+@dataclass(frozen=True)
+class DriveStatus:
+    counter: int
+    applied_current_A: float
+    state: int
+    rejected: int
+
+
+class E2eCodec:
+    """Encode and check the feedforward and status frames of the DBC."""
+
+    def __init__(self, dbc_path: str | Path | None = None) -> None:
+        path = Path(dbc_path) if dbc_path is not None else default_dbc_path()
+        try:
+            db = cantools.database.load_file(str(path), strict=True)
+            if not isinstance(db, cantools.database.can.Database):
+                raise cantools.database.Error("not a CAN database")
+            self.command = db.get_message_by_name("FfCommand")
+            self.status = db.get_message_by_name("DriveStatus")
+            current = self.command.get_signal_by_name("Current")
+            self.command_data_id = _data_id(self.command)
+            self.status_data_id = _data_id(self.status)
+        except (OSError, KeyError, cantools.database.Error) as err:
+            raise BusError(f"{path}: not a usable feedforward DBC ({err})") from err
+        self.dbc_path = path
+        if current.maximum is None:
+            raise BusError(f"{path}: signal FfCommand.Current needs a maximum")
+        self.scale_A = float(current.scale)
+        self.limit_raw = round(current.maximum / self.scale_A)
+
+    def to_raw(self, current_A: float) -> int:
+        """Current in A -> the ``Current`` signal's raw value (not saturated)."""
+        return round(current_A / self.scale_A)
+
+    def from_raw(self, raw: int) -> float:
+        return raw * self.scale_A
+
+    def encode_command(self, counter: int, raw: int) -> bytes:
+        data = self.command.encode(
+            {"Crc": 0, "Counter": counter % COUNTER_MODULUS, "Current": raw},
+            scaling=False,
+            strict=True,
+        )
+        return bytes(apply_profile5_crc(data, self.command_data_id) or b"")
+
+    def command_frame(self, counter: int, raw: int) -> can.Message:
+        return can.Message(
+            arbitration_id=self.command.frame_id,
+            data=self.encode_command(counter, raw),
+            is_extended_id=False,
+        )
+
+    def check_command(self, data: bytes) -> tuple[int, int] | None:
+        """``(counter, raw current)`` of an intact command frame, else None."""
+        if len(data) != self.command.length or not check_profile5_crc(
+            data, self.command_data_id
+        ):
+            return None
+        fields = _decode_raw(self.command, data)
+        return fields["Counter"], fields["Current"]
+
+    def status_frame(
+        self, counter: int, applied_raw: int, state: int, rejected: int
+    ) -> can.Message:
+        data = self.status.encode(
+            {
+                "Crc": 0,
+                "Counter": counter % COUNTER_MODULUS,
+                "AppliedCurrent": applied_raw,
+                "State": state,
+                "Rejected": rejected % 256,
+            },
+            scaling=False,
+            strict=True,
+        )
+        return can.Message(
+            arbitration_id=self.status.frame_id,
+            data=bytes(apply_profile5_crc(data, self.status_data_id) or b""),
+            is_extended_id=False,
+        )
+
+    def check_status(self, data: bytes) -> DriveStatus | None:
+        if len(data) != self.status.length or not check_profile5_crc(data, self.status_data_id):
+            return None
+        f = _decode_raw(self.status, data)
+        return DriveStatus(
+            f["Counter"], self.from_raw(f["AppliedCurrent"]), f["State"], f["Rejected"]
+        )
+
+
+def _data_id(message: Message) -> int:
+    attributes: Any = message.dbc.attributes if message.dbc is not None else {}
+    return int(attributes["E2EDataId"].value)
+
+
+def _decode_raw(message: Message, data: bytes) -> dict[str, int]:
+    fields: Any = message.decode(data, scaling=False, decode_choices=False)
+    return {name: int(value) for name, value in fields.items()}
+
+
+class E2eReceiver:
+    """The drive's side of the e2e profile: check, classify, apply, supervise.
+
+    A frame is applied only if its CRC holds, its counter is newer than the last
+    accepted one, and it is at most ``max_age_cycles`` older than the drive's
+    cycle count says it should be. After the link was lost, the first intact
+    frame only re-establishes the counter reference.
+    """
+
+    RESYNC, ACTIVE, HOLD, FALLBACK = range(4)  # the DBC's DriveStatus.State values
+
+    def __init__(self, codec: E2eCodec, supervisor: Supervisor, max_age_cycles: int) -> None:
+        self.codec = codec
+        self.supervisor = supervisor
+        self.max_age_cycles = max_age_cycles
+        self.counts = RejectCounts()
+        self.synced = False
+        self.last_counter = 0
+        self.cycles_since_reference = 0
+        self.fresh_raw: int | None = None
+        self.fresh_data: bytes | None = None
+
+    def on_frame(self, data: bytes) -> Verdict:
+        verdict = self._classify(data)
+        self.counts.add(verdict)
+        return verdict
+
+    def _classify(self, data: bytes) -> Verdict:
+        checked = self.codec.check_command(data)
+        if checked is None:
+            return Verdict.CORRUPT
+        counter, raw = checked
+        if not self.synced:
+            self.synced = True
+            self._take_reference(counter)
+            return Verdict.RESYNC
+        delta = (counter - self.last_counter) % COUNTER_MODULUS
+        if delta == 0:
+            return Verdict.DUPLICATE
+        if delta >= COUNTER_MODULUS // 2:
+            return Verdict.OUT_OF_ORDER
+        if self.cycles_since_reference - delta > self.max_age_cycles:
+            return Verdict.STALE
+        self._take_reference(counter)
+        self.fresh_raw = raw
+        self.fresh_data = bytes(data)
+        return Verdict.ACCEPTED
+
+    def _take_reference(self, counter: int) -> None:
+        self.last_counter = counter
+        self.cycles_since_reference = 0
+
+    def tick(self) -> int:
+        """One drive cycle: apply the fresh value, if any; return the applied raw value."""
+        was_lost = self.supervisor.link_lost
+        out = self.supervisor.tick(self.fresh_raw)
+        self.fresh_raw = None
+        self.cycles_since_reference += 1
+        if self.supervisor.link_lost and not was_lost:
+            self.synced = False  # the counter reference is void after an outage
+        return out
+
+    @property
+    def state(self) -> int:
+        if self.supervisor.link_lost:
+            return self.FALLBACK if self.supervisor.output_raw else self.RESYNC
+        return self.ACTIVE if self.supervisor.cycles_since_fresh == 0 else self.HOLD

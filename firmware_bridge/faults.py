@@ -1,0 +1,154 @@
+"""Fault injection on the sending side of any python-can bus.
+
+A fault spec reads ``KIND[:PROBABILITY][@START-END]``: ``drop:0.05`` drops 5 % of
+the feedforward frames, ``drop@0.2-0.25`` drops all of them for 50 ms (link
+loss), ``stall@0.3-0.32`` stalls the control loop, ``bus_error@0.4-0.45`` makes
+every send fail (bus off). Frame faults touch only the feedforward frames.
+
+``corrupt`` flips one payload bit. Where the frame carries its own CRC (e2e)
+the damaged frame is delivered, as from a faulty gateway or memory; where it
+does not (cia402), the flip is taken to happen on the wire, where the receiving
+controller's CRC-15 discards the frame: the receiver gets an error frame.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import re
+from dataclasses import dataclass, field
+from typing import Literal, get_args
+
+import can
+
+from gms_comp.errors import BusError
+
+FaultKind = Literal["drop", "delay", "duplicate", "reorder", "corrupt", "stall", "bus_error"]
+FAULT_KINDS: tuple[str, ...] = get_args(FaultKind)
+DELAY_CYCLES = 2
+_SPEC = re.compile(
+    r"^(?P<kind>[a-z_]+)(?::(?P<p>[0-9.eE+-]+))?(?:@(?P<start>[0-9.eE+-]+)-(?P<end>[0-9.eE+-]+))?$"
+)
+
+
+@dataclass(frozen=True)
+class Fault:
+    kind: FaultKind
+    probability: float = 1.0
+    start_s: float = 0.0
+    end_s: float = math.inf
+
+    def active(self, now_s: float) -> bool:
+        return self.start_s <= now_s < self.end_s
+
+
+def parse_fault(text: str) -> Fault:
+    """Parse one ``KIND[:PROBABILITY][@START-END]`` spec."""
+    m = _SPEC.match(text.strip())
+    if m is None or m["kind"] not in FAULT_KINDS:
+        raise BusError(
+            f"bad fault spec {text!r}: expected KIND[:PROBABILITY][@START-END] "
+            f"with KIND one of {', '.join(FAULT_KINDS)}"
+        )
+    try:
+        p = float(m["p"]) if m["p"] else 1.0
+        start = float(m["start"]) if m["start"] else 0.0
+        end = float(m["end"]) if m["end"] else math.inf
+    except ValueError:
+        raise BusError(f"bad fault spec {text!r}: numbers expected") from None
+    if not 0.0 <= p <= 1.0 or not 0.0 <= start < end:
+        raise BusError(f"bad fault spec {text!r}: need 0 <= PROBABILITY <= 1, 0 <= START < END")
+    return Fault(m["kind"], p, start, end)  # type: ignore[arg-type]
+
+
+@dataclass
+class FaultyBus:
+    """Sends through ``bus``, damaging frames with ids in ``target_ids`` per ``faults``."""
+
+    bus: can.BusABC
+    faults: tuple[Fault, ...]
+    target_ids: frozenset[int]
+    self_checked: bool  # frames carry their own CRC (see module docstring)
+    seed: int = 0
+    now_s: float = 0.0
+    cycle: int = 0
+    injected: dict[str, int] = field(default_factory=dict)
+    _held: list[tuple[int, can.Message]] = field(default_factory=list)
+    _reordered: can.Message | None = None
+
+    def __post_init__(self) -> None:
+        self._rng = random.Random(self.seed)
+
+    def begin_cycle(self, cycle: int, now_s: float) -> None:
+        """Start control cycle ``cycle``: release delayed frames that are due."""
+        self.cycle, self.now_s = cycle, now_s
+        due = [m for c, m in self._held if c <= cycle]
+        self._held = [(c, m) for c, m in self._held if c > cycle]
+        for msg in due:
+            self._send(msg)
+
+    def _hits(self, kind: str) -> bool:
+        return any(
+            f.kind == kind and f.active(self.now_s) and self._rng.random() < f.probability
+            for f in self.faults
+        )
+
+    def _count(self, kind: str) -> None:
+        self.injected[kind] = self.injected.get(kind, 0) + 1
+
+    def stall_end(self, now_s: float) -> float | None:
+        """End of the controller stall injected at ``now_s``, if any."""
+        ends = [f.end_s for f in self.faults if f.kind == "stall" and f.active(now_s)]
+        return max(ends, default=None)
+
+    def stalled(self) -> bool:
+        return self.stall_end(self.now_s) is not None
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if self._hits("bus_error"):
+            self._count("bus_error")
+            raise can.CanOperationError("bus off (injected fault)")
+        if msg.arbitration_id not in self.target_ids:
+            self._send(msg)
+            return
+        self._send_target(msg)
+        if self._reordered is not None and self._reordered is not msg:
+            held, self._reordered = self._reordered, None
+            self._send(held)
+
+    def _send_target(self, msg: can.Message) -> None:
+        if self._hits("drop"):
+            self._count("drop")
+            return
+        if self._hits("delay"):
+            self._count("delay")
+            self._held.append((self.cycle + DELAY_CYCLES, msg))
+            return
+        if self._reordered is None and self._hits("reorder"):
+            self._count("reorder")
+            self._reordered = msg  # goes out right after the next feedforward frame
+            return
+        if self._hits("corrupt"):
+            self._count("corrupt")
+            msg = self._corrupted(msg)
+        self._send(msg)
+        if self._hits("duplicate"):
+            self._count("duplicate")
+            self._send(msg)
+
+    def _corrupted(self, msg: can.Message) -> can.Message:
+        data = bytearray(msg.data)
+        bit = self._rng.randrange(8 * len(data))
+        data[bit // 8] ^= 1 << (bit % 8)
+        return can.Message(
+            arbitration_id=msg.arbitration_id,
+            data=bytes(data),
+            is_extended_id=msg.is_extended_id,
+            is_error_frame=not self.self_checked,
+        )
+
+    def _send(self, msg: can.Message) -> None:
+        self.bus.send(msg)
+
+    def recv(self, timeout: float | None = None) -> can.Message | None:
+        return self.bus.recv(timeout)

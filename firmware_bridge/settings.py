@@ -1,0 +1,86 @@
+"""The ``[can]`` config section: how the feedforward travels to the drive.
+
+Times are in seconds and currents in amperes; the conversion to CAN units
+(per mille, 0.1 mA steps, milliseconds in the object dictionary) happens in the
+profile codecs only.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+from gms_comp.config import (
+    default_config_path,
+    in_range,
+    parse_section,
+    positive,
+    read_toml,
+)
+
+ProfileName = Literal["cia402", "e2e"]
+
+
+@dataclass(frozen=True)
+class CanConfig:
+    """Transport of the feedforward current from the compensator to the drive.
+
+    ``rx_timeout_s`` is how long the drive holds the last valid value before it
+    declares the link lost; it then ramps the offset to zero over at most
+    ``ramp_time_s``, so the feedforward is zero ``rx_timeout_s + ramp_time_s``
+    after the last valid frame. The streamer uses the same ramp on stop or fault.
+    """
+
+    profile: ProfileName = "cia402"
+    interface: str = "virtual"
+    channel: str = "gms-comp"
+    bitrate_bit_s: int = field(default=1_000_000, metadata=positive())
+    cycle_period_s: float = field(default=1e-3, metadata=positive())
+    max_current_A: float = field(default=1.0, metadata=positive())
+    ramp_time_s: float = field(default=5e-3, metadata=positive())
+    rx_timeout_s: float = field(default=3e-3, metadata=positive())
+    max_frame_age_cycles: int = field(default=1, metadata=in_range(0, 16))
+    drive_node_id: int = field(default=1, metadata=in_range(1, 127))
+    compensator_node_id: int = field(default=16, metadata=in_range(1, 127))
+    sync_master: bool = True
+    heartbeat_period_s: float = field(default=0.1, metadata=positive())
+    rated_current_A: float = field(default=2.0, metadata=positive())
+    background_load: float = field(default=0.0, metadata=in_range(0.0, 1.0, hi_open=True))
+    status_every_cycles: int = field(default=1, metadata=in_range(1, 1000))
+
+    def problems(self) -> list[tuple[str, str]]:
+        found = []
+        for name in ("rx_timeout_s", "ramp_time_s", "heartbeat_period_s"):
+            if getattr(self, name) < self.cycle_period_s:
+                found.append((name, f"must be >= cycle_period_s ({self.cycle_period_s:g} s)"))
+        if self.drive_node_id == self.compensator_node_id:
+            found.append(("compensator_node_id", "must differ from drive_node_id"))
+        return found
+
+    @property
+    def timeout_cycles(self) -> int:
+        """Whole cycles the drive holds a value before declaring the link lost."""
+        return cycles_within(self.rx_timeout_s, self.cycle_period_s)
+
+    @property
+    def ramp_cycles(self) -> int:
+        """Whole cycles a full-scale ramp to zero may take."""
+        return cycles_within(self.ramp_time_s, self.cycle_period_s)
+
+    @property
+    def fallback_time_s(self) -> float:
+        """Upper bound from the last valid frame to a zero feedforward."""
+        return (self.timeout_cycles + self.ramp_cycles) * self.cycle_period_s
+
+
+def cycles_within(duration_s: float, period_s: float) -> int:
+    """Number of whole periods that fit in ``duration_s`` (at least one)."""
+    return max(1, math.floor(duration_s / period_s + 1e-9))
+
+
+def load_can_config(path: str | Path | None = None) -> CanConfig:
+    """Load the ``[can]`` section of ``path`` (default: the packaged config)."""
+    p = Path(path) if path is not None else default_config_path()
+    return parse_section(read_toml(p), p, "can", CanConfig)

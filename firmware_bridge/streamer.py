@@ -1,0 +1,178 @@
+"""The compensator side: one feedforward frame per control cycle, sent by the loop itself.
+
+There is no background sender: if the loop stalls, the bus falls silent and the
+drive's timeout fires. The :class:`Shaper` saturates the current before it is
+encoded and ramps it to zero on stop or on a source fault.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import can
+
+from .busload import bus_load
+from .cia402 import Cia402Codec, load_drive_od
+from .e2e import DriveStatus, E2eCodec
+from .settings import CanConfig
+from .supervisor import saturate, toward_zero
+
+
+class CompensatorTx(Protocol):
+    """What the streamer needs from a profile."""
+
+    target_ids: frozenset[int]  # ids of the feedforward frames (what faults act on)
+    self_checked: bool  # feedforward frames carry their own CRC
+    limit_raw: int
+
+    def to_raw(self, current_A: float) -> int: ...
+
+    def frames(self, cycle: int, raw: int) -> tuple[can.Message, list[can.Message]]: ...
+
+    def traffic(self) -> list[tuple[int, float]]: ...
+
+    def on_reply(self, msg: can.Message) -> None: ...
+
+
+class E2eTx:
+    def __init__(self, cfg: CanConfig) -> None:
+        self.cfg = cfg
+        self.codec = E2eCodec()
+        self.target_ids = frozenset({self.codec.command.frame_id})
+        self.self_checked = True
+        self.limit_raw = min(self.codec.limit_raw, self.codec.to_raw(cfg.max_current_A))
+        self.to_raw = self.codec.to_raw
+        self.last_status: DriveStatus | None = None
+
+    def frames(self, cycle: int, raw: int) -> tuple[can.Message, list[can.Message]]:
+        return self.codec.command_frame(cycle, raw), []
+
+    def traffic(self) -> list[tuple[int, float]]:
+        rate = 1.0 / self.cfg.cycle_period_s
+        return [(self.codec.command.length, rate),
+                (self.codec.status.length, rate / self.cfg.status_every_cycles)]
+
+    def on_reply(self, msg: can.Message) -> None:
+        if msg.arbitration_id == self.codec.status.frame_id:
+            self.last_status = self.codec.check_status(bytes(msg.data)) or self.last_status
+
+
+class Cia402Tx:
+    def __init__(self, cfg: CanConfig) -> None:
+        self.cfg = cfg
+        self.codec = Cia402Codec(cfg, load_drive_od(cfg.drive_node_id))
+        self.target_ids = frozenset({self.codec.rpdo_cob_id})
+        self.self_checked = False
+        self.limit_raw = min(self.codec.limit_raw, self.codec.to_raw(cfg.max_current_A))
+        self.to_raw = self.codec.to_raw
+        self.heartbeat_cycles = max(1, round(cfg.heartbeat_period_s / cfg.cycle_period_s))
+        self.emcy_received: list[int] = []
+
+    def frames(self, cycle: int, raw: int) -> tuple[can.Message, list[can.Message]]:
+        extra = [self.codec.sync_frame()] if self.cfg.sync_master else []
+        if cycle % self.heartbeat_cycles == 0:
+            extra.append(self.codec.heartbeat_frame())
+        return self.codec.rpdo_frame(raw), extra
+
+    def traffic(self) -> list[tuple[int, float]]:
+        rate = 1.0 / self.cfg.cycle_period_s  # SYNC is on the bus whoever produces it
+        return [(2, rate), (0, rate), (1, 1.0 / self.cfg.heartbeat_period_s)]
+
+    def on_reply(self, msg: can.Message) -> None:
+        if msg.arbitration_id == 0x80 + self.cfg.drive_node_id and len(msg.data) >= 2:
+            self.emcy_received.append(int.from_bytes(msg.data[:2], "little"))
+
+
+def make_tx(cfg: CanConfig) -> CompensatorTx:
+    return E2eTx(cfg) if cfg.profile == "e2e" else Cia402Tx(cfg)
+
+
+def profile_bus_load(cfg: CanConfig, tx: CompensatorTx) -> float:
+    """Worst-case load of the profile's traffic plus the configured background."""
+    return bus_load(tx.traffic(), cfg.bitrate_bit_s) + cfg.background_load
+
+
+@dataclass
+class Shaper:
+    """Saturation and ramp-to-zero of the commanded value, in raw CAN units."""
+
+    limit_raw: int
+    ramp_cycles: int
+    value_raw: int = 0
+
+    def step(self, raw: int | None) -> int:
+        """Next command; ``None`` asks for the ramp towards zero (stop or fault)."""
+        if raw is None:
+            step = math.ceil(self.limit_raw / self.ramp_cycles)
+            self.value_raw = toward_zero(self.value_raw, step)
+        else:
+            self.value_raw = saturate(raw, self.limit_raw)
+        return self.value_raw
+
+
+class Sender(Protocol):
+    def send(self, msg: can.Message, timeout: float | None = None) -> None: ...
+
+    def recv(self, timeout: float | None = None) -> can.Message | None: ...
+
+
+@dataclass
+class Streamer:
+    """Encodes and sends the feedforward of one control cycle."""
+
+    cfg: CanConfig
+    bus: Sender
+    tx: CompensatorTx
+    frames_sent: int = 0
+    send_errors: int = 0
+    source_faults: int = 0
+    sent_log: list[tuple[float, bytes]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.shaper = Shaper(self.tx.limit_raw, self.cfg.ramp_cycles)
+
+    def cycle(self, cycle: int, current_A: float | None, now_s: float) -> int:
+        """Send cycle ``cycle``'s frames; ``None`` ramps towards zero. Returns the raw command."""
+        if current_A is not None and not math.isfinite(current_A):
+            self.source_faults += 1
+            current_A = None
+        raw = self.shaper.step(None if current_A is None else self.tx.to_raw(current_A))
+        feedforward, extra = self.tx.frames(cycle, raw)
+        try:
+            self.bus.send(feedforward)
+            self.frames_sent += 1
+            self.sent_log.append((now_s, bytes(feedforward.data)))
+            for msg in extra:
+                self.bus.send(msg)
+        except can.CanError:
+            self.send_errors += 1  # the bus is off; the drive's timeout takes over
+        self.drain_replies()
+        return raw
+
+    def drain_replies(self) -> None:
+        while (msg := self.bus.recv(timeout=0.0)) is not None:
+            self.tx.on_reply(msg)
+
+
+def count_unsent_applied(
+    sent: Sequence[tuple[float, bytes]], applied: Sequence[tuple[float, bytes]], window_s: float
+) -> int:
+    """Applied frames that are not a payload the streamer sent within ``window_s`` before.
+
+    An independent check of the receiver: whatever it accepted must be exactly
+    what was sent, and recent. Corrupted, stale or replayed frames fail it.
+    """
+    times: dict[bytes, list[float]] = {}
+    for t, data in sent:
+        times.setdefault(data, []).append(t)
+    bad = 0
+    for t, data in applied:
+        ts = times.get(data, [])
+        i = bisect.bisect_right(ts, t + 1e-9)
+        if i == 0 or t - ts[i - 1] > window_s:
+            bad += 1
+    return bad
