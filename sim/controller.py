@@ -7,9 +7,13 @@ discretized with python-control at the servo rate:
   so that the velocity loop crosses over near ``w_v``;
 - position P ``K_p = w_p`` (1/s) on the position error, plus the reference
   velocity as feedforward into the velocity loop;
-- the reference acceleration as current feedforward ``m a / k_f``;
+- the reference acceleration as current feedforward ``m a / k_f``, taken a few
+  cycles ahead (``acceleration_lead_cycles``) to make up for the hold and the
+  current loop;
 - the velocity measured by differencing the encoder, through a first-order
-  low-pass.
+  low-pass. The velocity feedforward is the reference position through the
+  same estimator, so that under acceleration both lag alike and the velocity
+  loop sees no error the estimator made up.
 
 The PI and the filter become discrete state-space blocks (``control.c2d``); the
 PI integrator stops integrating while the current command saturates in the
@@ -25,7 +29,7 @@ from typing import Literal
 import control
 import numpy as np
 
-from gms_comp.config import positive
+from gms_comp.config import in_range, positive
 
 from .plant import PlantConfig
 
@@ -41,6 +45,7 @@ class ControllerConfig:
     velocity_filter_Hz: float = field(default=1000.0, metadata=positive())
     discretization: Literal["tustin", "zoh", "foh", "backward_diff"] = "tustin"
     acceleration_feedforward: bool = True
+    acceleration_lead_cycles: int = field(default=1, metadata=in_range(0, 100))
 
     @property
     def servo_period_s(self) -> float:
@@ -110,41 +115,67 @@ def design(plant: PlantConfig, cfg: ControllerConfig) -> CascadeGains:
     )
 
 
+class VelocityEstimator:
+    """Backward difference of a position, through the discrete low-pass."""
+
+    def __init__(self, lowpass: DiscreteBlock, period_s: float) -> None:
+        self.lowpass = lowpass
+        self.period_s = period_s
+        self.reset(0.0)
+
+    def reset(self, position_m: float) -> None:
+        """At rest at ``position_m``."""
+        self._state = 0.0
+        self._last_m = position_m
+        self.velocity_m_s = 0.0
+
+    def step(self, position_m: float) -> float:
+        """Take the next position sample; return the filtered velocity."""
+        raw = (position_m - self._last_m) / self.period_s
+        self._last_m = position_m
+        f = self.lowpass
+        self.velocity_m_s = f.c * self._state + f.d * raw
+        self._state = f.a * self._state + f.b * raw
+        return self.velocity_m_s
+
+
 class CascadeController:
     """The discrete cascade, one servo cycle per :meth:`step`."""
 
-    def __init__(self, gains: CascadeGains, current_limit_A: float) -> None:
+    def __init__(
+        self, gains: CascadeGains, current_limit_A: float, acceleration_lead_cycles: int = 0
+    ) -> None:
         self.gains = gains
+        self.acceleration_lead_cycles = acceleration_lead_cycles
         self.current_limit_A = current_limit_A
+        self._measured = VelocityEstimator(gains.velocity_filter, gains.servo_period_s)
+        self._reference = VelocityEstimator(gains.velocity_filter, gains.servo_period_s)
         self.reset()
+
+    @property
+    def velocity_m_s(self) -> float:
+        """The estimated velocity of the axis."""
+        return self._measured.velocity_m_s
 
     def reset(self, position_m: float = 0.0) -> None:
         """At rest at ``position_m``."""
         self._pi_state = 0.0
-        self._filter_state = 0.0
-        self._last_position_m = position_m
-        self.velocity_m_s = 0.0
+        self._measured.reset(position_m)
+        self._reference.reset(position_m)
 
     def step(
         self,
         measured_position_m: float,
         reference_position_m: float,
-        reference_velocity_m_s: float,
         reference_acceleration_m_s2: float,
         feedforward_current_A: float,
     ) -> float:
         """Return the current command for this cycle (clipped to the current limit)."""
         g = self.gains
-        raw_velocity = (measured_position_m - self._last_position_m) / g.servo_period_s
-        self._last_position_m = measured_position_m
-        f = g.velocity_filter
-        self.velocity_m_s = f.c * self._filter_state + f.d * raw_velocity
-        self._filter_state = f.a * self._filter_state + f.b * raw_velocity
-        velocity_command = (
-            g.position_gain_per_s * (reference_position_m - measured_position_m)
-            + reference_velocity_m_s
-        )
-        error = velocity_command - self.velocity_m_s
+        velocity_command = g.position_gain_per_s * (
+            reference_position_m - measured_position_m
+        ) + self._reference.step(reference_position_m)
+        error = velocity_command - self._measured.step(measured_position_m)
         pi = g.velocity_pi
         command = (
             pi.c * self._pi_state

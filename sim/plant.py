@@ -170,18 +170,26 @@ class LinearMotorAxis:
         self.cfg = cfg
         self.friction = friction
         discrete = control.c2d(linear_system(cfg), servo_period_s / cfg.substeps, "zoh")
-        # Python floats: a per-cycle loop on numpy scalars would be several times slower.
-        self._ad = [list(map(float, row)) for row in np.asarray(discrete.A)]
-        self._bd = [list(map(float, row)) for row in np.asarray(discrete.B)]
-        self._n = state_size(cfg)
+        # Padded to four states (a first-order current loop leaves the last at 0) and
+        # held as Python floats: the per-cycle update is then plain float arithmetic,
+        # several times faster than numpy on arrays this small.
+        n = state_size(cfg)
+        ad = np.zeros((4, 4))
+        bd = np.zeros((4, 2))
+        ad[:n, :n] = discrete.A
+        bd[:n] = discrete.B
+        self._ad = tuple(tuple(map(float, row)) for row in ad)
+        self._bd = tuple(tuple(map(float, row)) for row in bd)
+        self._noise_block = 4096
         self.reset()
 
     def reset(self) -> None:
         """At rest at 0 m, no current, friction virgin, noise re-seeded."""
-        self.state = [0.0] * self._n
+        self.state = [0.0] * 4
         self.friction.reset()
         self.friction_force_N = 0.0
         self._rng = np.random.default_rng(self.cfg.noise_seed)
+        self._noise: list[float] = []
 
     @property
     def position_m(self) -> float:
@@ -203,7 +211,9 @@ class LinearMotorAxis:
         cfg = self.cfg
         reading = self.state[0]
         if cfg.position_noise_m > 0:
-            reading += cfg.position_noise_m * float(self._rng.standard_normal())
+            if not self._noise:
+                self._noise = self._rng.standard_normal(self._noise_block).tolist()
+            reading += cfg.position_noise_m * self._noise.pop()
         if cfg.encoder_resolution_m > 0:
             reading = round(reading / cfg.encoder_resolution_m) * cfg.encoder_resolution_m
         return reading
@@ -212,15 +222,17 @@ class LinearMotorAxis:
         """Hold ``current_command_A`` (clipped to the limit) over one cycle; return the
         encoder reading at its end."""
         limit = self.cfg.current_limit_A
-        command = min(max(current_command_A, -limit), limit)
-        ad, bd, n = self._ad, self._bd, self._n
-        x = self.state
+        u = min(max(current_command_A, -limit), limit)
+        (a0, a1, a2, a3), (b0, b1, b2, b3) = self._ad, self._bd
+        x0, x1, x2, x3 = self.state
         for _ in range(self.cfg.substeps):
-            force = -self.friction.step(x[0], x[1])
-            x = [
-                sum(ad[r][c] * x[c] for c in range(n)) + bd[r][0] * command + bd[r][1] * force
-                for r in range(n)
-            ]
-            self.friction_force_N = -force
-        self.state = x
+            f = -self.friction.step(x0, x1)
+            x0, x1, x2, x3 = (
+                a0[0] * x0 + a0[1] * x1 + a0[2] * x2 + a0[3] * x3 + b0[0] * u + b0[1] * f,
+                a1[0] * x0 + a1[1] * x1 + a1[2] * x2 + a1[3] * x3 + b1[0] * u + b1[1] * f,
+                a2[0] * x0 + a2[1] * x1 + a2[2] * x2 + a2[3] * x3 + b2[0] * u + b2[1] * f,
+                a3[0] * x0 + a3[1] * x1 + a3[2] * x2 + a3[3] * x3 + b3[0] * u + b3[1] * f,
+            )
+            self.friction_force_N = -f
+        self.state = [x0, x1, x2, x3]
         return self.measure()

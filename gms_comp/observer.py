@@ -1,0 +1,172 @@
+"""Streaming friction observer: model force -> saturated, rate-limited feedforward current.
+
+The observer runs a streaming friction model (the GMS table by default) once per
+servo cycle. It is fed either reference samples, which the caller takes
+``look_ahead`` cycles ahead to cancel the transport and current-loop delays, or
+the measured position and velocity. The force becomes a current through the
+motor's force constant, scaled by the friction level, clipped to a current
+limit and rate-limited so that a model fault cannot kick the axis.
+
+States: enabled, or disabled (the output ramps to 0 A at the rate limit while
+the model keeps tracking, so re-enabling is bumpless). A non-finite model force
+disables the observer by itself (fallback).
+
+Optional slow adaptation of the friction level: during steady motion the
+friction share of the drive's current, ``k_f (i_drive - i_inertial)``, is
+compared with the model force and the level follows their ratio with a small
+gain. Guards against drift: updates only above a minimum speed and with a model
+force clear of zero, outlying ratios are ignored, and the level stays within
+bounds around its initial value.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal, Protocol, runtime_checkable
+
+from .config import in_range, non_negative, positive
+from .gms import GmsParams, GmsStream
+
+
+@runtime_checkable
+class ForceModel(Protocol):
+    """A streaming friction model: resisting force in N (``F v >= 0`` when sliding)."""
+
+    def reset(self) -> None:
+        """Back to the virgin state."""
+
+    def step(self, position_m: float, velocity_m_s: float) -> float:
+        """Advance to ``position_m`` and return the force."""
+        ...
+
+
+class HasGmsParams(Protocol):
+    """A GMS table (``gms_comp.table.GmsTable``) as far as the observer needs it."""
+
+    @property
+    def params(self) -> GmsParams:
+        """The element parameters."""
+        ...
+
+
+@dataclass(frozen=True)
+class CompensatorConfig:
+    """The ``[compensator]`` section: how the feedforward is computed and limited."""
+
+    feed: Literal["reference", "measured"] = "reference"
+    look_ahead_cycles: int = field(default=1, metadata=in_range(0, 1000))
+    table_path: str = ""
+    table_elements: int = field(default=12, metadata=in_range(1, 1000))
+    friction_level_scale: float = field(default=1.0, metadata=positive())
+    current_limit_A: float = field(default=3.0, metadata=positive())
+    rate_limit_A_per_s: float = field(default=2000.0, metadata=positive())
+    coulomb_velocity_band_m_s: float = field(default=1e-4, metadata=positive())
+    adaptation_rate_per_s: float = field(default=0.0, metadata=non_negative())
+    adaptation_min_velocity_m_s: float = field(default=2e-3, metadata=positive())
+    adaptation_level_bounds: tuple[float, ...] = (0.5, 2.0)
+
+    def problems(self) -> list[tuple[str, str]]:
+        """The level bounds must bracket 1."""
+        lo_hi = self.adaptation_level_bounds
+        if len(lo_hi) != 2 or not 0 < lo_hi[0] <= 1.0 <= lo_hi[1]:
+            return [
+                (
+                    "adaptation_level_bounds",
+                    f"must be [lo, hi] with 0 < lo <= 1 <= hi, got {list(lo_hi)}",
+                )
+            ]
+        return []
+
+
+class FrictionObserver:
+    """Feedforward current from a streaming friction model.
+
+    Parameters
+    ----------
+    table
+        A GMS table (anything with ``.params``), or any :class:`ForceModel`.
+    force_constant_N_per_A
+        Motor force constant; current = level * force / k_f.
+    servo_period_s
+        One cycle; sets the per-cycle step of the rate limit and the adaptation.
+    level
+        Friction level: multiplies the model force (a table of one ball set on a
+        guide of many, or a deliberately mis-set level).
+    config
+        Limits and adaptation settings.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> obs = FrictionObserver(GmsStream(GmsParams(np.array([1e6]), np.array([10.0]))),
+    ...                        force_constant_N_per_A=50.0, servo_period_s=2.5e-4)
+    >>> [round(obs.step(x, 1e-3), 3) for x in (0.0, 1e-3, 2e-3)]
+    [0.0, 0.2, 0.2]
+    """
+
+    def __init__(
+        self,
+        table: HasGmsParams | ForceModel,
+        force_constant_N_per_A: float,
+        servo_period_s: float,
+        level: float = 1.0,
+        config: CompensatorConfig | None = None,
+    ) -> None:
+        self.model = table if isinstance(table, ForceModel) else GmsStream(table.params)
+        self.config = config or CompensatorConfig()
+        self.force_constant_N_per_A = force_constant_N_per_A
+        self.servo_period_s = servo_period_s
+        self.initial_level = level
+        self._max_step_A = self.config.rate_limit_A_per_s * servo_period_s
+        self.reset()
+
+    def reset(self) -> None:
+        """Virgin model, 0 A output, enabled, level back to its initial value."""
+        self.model.reset()
+        self.level = self.initial_level
+        self.enabled = True
+        self.model_force_N = 0.0
+        self.output_A = 0.0
+
+    def disable(self) -> None:
+        """Fall back to no feedforward; the output ramps down at the rate limit."""
+        self.enabled = False
+
+    def enable(self) -> None:
+        """Resume feedforward (bumpless: the model kept tracking)."""
+        self.enabled = True
+
+    def step(self, position_m: float, velocity_m_s: float) -> float:
+        """Advance the model one cycle and return the feedforward current in A."""
+        force = self.model.step(position_m, velocity_m_s)
+        if not math.isfinite(force):
+            self.disable()
+            force = 0.0
+        self.model_force_N = force
+        limit = self.config.current_limit_A
+        target = self.level * force / self.force_constant_N_per_A if self.enabled else 0.0
+        target = min(max(target, -limit), limit)
+        change = min(max(target - self.output_A, -self._max_step_A), self._max_step_A)
+        self.output_A += change
+        return self.output_A
+
+    def adapt(self, drive_current_A: float, inertial_current_A: float, velocity_m_s: float) -> None:
+        """Nudge the friction level towards what the drive's current says.
+
+        ``drive_current_A`` is the motor current, ``inertial_current_A`` the share
+        that accelerates the mass (``m a / k_f`` from the reference).
+        """
+        cfg = self.config
+        if cfg.adaptation_rate_per_s == 0 or abs(velocity_m_s) < cfg.adaptation_min_velocity_m_s:
+            return
+        model_force = self.model_force_N
+        if abs(model_force) < 1e-12:
+            return
+        observed_N = self.force_constant_N_per_A * (drive_current_A - inertial_current_A)
+        ratio = observed_N / model_force
+        if not 0.5 * self.level < ratio < 2.0 * self.level:
+            return  # an outlier (a reversal transient, a collision): no evidence of level
+        gain = cfg.adaptation_rate_per_s * self.servo_period_s
+        lo, hi = (b * self.initial_level for b in cfg.adaptation_level_bounds)
+        self.level = min(max(self.level + gain * (ratio - self.level), lo), hi)

@@ -1,0 +1,92 @@
+"""Trajectories, link and the closed loop, with a GMS stand-in as friction truth."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from gms_comp.gms import GmsParams, GmsStream
+from sim.link import DirectLink
+from sim.scenarios import Physics, Scenario, load_scenario, run_strategies, score
+from sim.trajectories import circle, reversals, sine, stops
+
+SERVO_S = 2.5e-4
+# A stand-in truth of one ball set: four elements, presliding over a few micrometres.
+STAND_IN = GmsParams(np.array([2e5, 5e4, 1e4, 3e3]), np.array([0.1, 0.08, 0.06, 0.04]))
+
+
+@dataclass(frozen=True)
+class Table:
+    params: GmsParams
+
+
+def _physics(table: GmsParams = STAND_IN) -> Physics:
+    return Physics(truth=lambda ball: GmsStream(STAND_IN), table=lambda s: Table(table))
+
+
+def _scenario(**scenario: object) -> Scenario:
+    s = load_scenario()
+    short = {"revolutions": 0.6, "dwell_s": 0.05, **scenario}
+    return dataclasses.replace(s, scenario=dataclasses.replace(s.scenario, **short))
+
+
+def test_reference_is_consistent_and_smooth() -> None:
+    x, y = circle(0.01, 0.02, 1.0, SERVO_S, 0.01, 0.005, 0.1)
+    for ref in (x, y):
+        slope = np.gradient(ref.position_m, SERVO_S)[1:-1]
+        np.testing.assert_allclose(slope, ref.velocity_m_s[1:-1], rtol=0, atol=1e-3 * 0.02)
+        # Two boxcars: |a| <= v / window, exactly the acceleration bound of the filter.
+        assert np.max(np.abs(ref.acceleration_m_s2)) <= 0.02 / 0.01 * (1 + 1e-9)
+    radius = np.hypot(x.position_m, y.position_m - 0.01)
+    quarter = slice(x.cycles // 8, x.cycles // 2)  # away from the ramps
+    np.testing.assert_allclose(radius[quarter], 0.01, rtol=2e-3)
+
+
+def test_reversals_and_stops_are_found() -> None:
+    ref = sine(1e-3, 2.0, 2.0, SERVO_S, 0.01, 0.005, 0.1)
+    # x = A sin: reverses at a quarter and three quarters of each period (+ filter delay).
+    turns = reversals(ref) * SERVO_S
+    assert len(turns) == 4
+    np.testing.assert_allclose(turns, np.array([0.125, 0.375, 0.625, 0.875]), atol=0.01)
+    ((start, end),) = stops(ref, min_stop_s=0.01)
+    assert end == ref.cycles
+    assert (end - start) * SERVO_S == pytest.approx(0.1, abs=4 * SERVO_S)
+
+
+def test_direct_link_delays_by_whole_cycles() -> None:
+    link = DirectLink(delay_cycles=2)
+    assert [link.transfer(k, float(k + 1)) for k in range(5)] == [0.0, 0.0, 1.0, 2.0, 3.0]
+
+
+def test_friction_truth_opposes_motion_and_dissipates() -> None:
+    s = _scenario()
+    result = run_strategies(s, ["none"], _physics())["none"]
+    v = np.gradient(result.position_m, SERVO_S)
+    work_J = np.sum(result.friction_N * v) * SERVO_S
+    assert work_J > 0
+    sliding = np.abs(result.reference.velocity_m_s) > 0.5 * s.scenario.feed_m_s
+    assert np.all(result.friction_N[sliding] * v[sliding] > 0)
+
+
+def test_compensation_lowers_the_reversal_error() -> None:
+    s = _scenario()
+    results = run_strategies(s, ["none", "gms"], _physics())
+    none, gms = (score(results[k], s.scenario) for k in ("none", "gms"))
+    assert none["peak_reversal_error_m"] is not None
+    assert gms["peak_reversal_error_m"] is not None
+    assert gms["peak_reversal_error_m"] < none["peak_reversal_error_m"] / 3
+    assert gms["rms_error_m"] < none["rms_error_m"]  # type: ignore[operator]
+
+
+def test_feedforward_respects_the_compensator_limits() -> None:
+    s = _scenario()
+    comp = dataclasses.replace(s.compensator, current_limit_A=0.05, rate_limit_A_per_s=50.0)
+    results = run_strategies(dataclasses.replace(s, compensator=comp), ["gms"], _physics())
+    ff = results["gms"].feedforward_A
+    assert np.max(np.abs(ff)) <= 0.05 + 1e-12
+    assert np.max(np.abs(np.diff(ff))) <= 50.0 * SERVO_S + 1e-12
+    assert math.isclose(np.max(np.abs(ff)), 0.05)  # the limit is reached: it was binding
