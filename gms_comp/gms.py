@@ -4,23 +4,26 @@ Al-Bender, Lampaert, Swevers, IEEE TAC 50(11), 2005. The friction force is
 
     F = sum_i F_i + sigma2 v,
 
-with N elements (stiffness k_i, limit W_i at level s = 1). Element i sticks,
-dF_i = k_i dx, until |F_i| reaches s(v) W_i; it then slips, and its force is
-attracted to sgn(v) s(v) W_i by dF_i/dt = sgn(v) (C / s) (s W_i - F_i), until
-the motion reverses. The velocity level
+with N elements (stiffness k_i, stick limit W_i). Element i sticks,
+dF_i = k_i dx, while |F_i| <= W_i; beyond, it slips, and its force is attracted
+to the slip force sgn(v) s(v) W_i by dF_i/dt = sgn(v) (C / s) (s W_i - F_i),
+until the motion reverses; it then sticks again from +-W_i. The velocity level
 
     s(v) = C_v + (1 - C_v) exp(-(|v| / v_t)^delta)
 
-is 1 at rest and C_v when moving. C_v > 1 is the seed's slip exaggeration
-(a slipping bristle carries C_v times its stick limit, so the force drops by
-C_v at a stop); C_v < 1 is the classical Stribeck curve.
+is 1 at rest and C_v when moving. This is the seed's bristle law (its Eq. 1):
+a stuck bristle carries k u up to f_max, a slipping one C_v f_max, so the force
+drops by C_v at a stop and at a reversal, and comes back when slipping
+resumes. C_v > 1 is the seed's slip exaggeration; C_v < 1 gives stiction with
+a Stribeck drop. With C_v = 1 it is Al-Bender's GMS with a constant level.
 
 The update is written per displacement step: over a sample, dt = |dx| / |v|,
 so the attraction becomes an exact exponential in displacement,
 exp(-C |dx| / (s |v|)). For C -> infinity (the default) that factor is 0 and
-the update is the exact, unconditionally stable play-operator (Maxwell-slip)
-update delta_i <- clip(delta_i + dx, -s W_i/k_i, s W_i/k_i). A sample at rest
-(v = 0) applies the new level at once: the seed's instantaneous drop at a stop.
+the stick part is the exact, unconditionally stable play-operator
+(Maxwell-slip) update delta_i <- clip(delta_i + dx, -W_i/k_i, W_i/k_i),
+F_i = k_i delta_i, with slipping elements carrying s(v) W_i. A sample at rest
+(v = 0) applies the new level at once.
 
 One numba per-sample routine serves both interfaces: :func:`simulate` loops it
 over a whole trajectory, :class:`GmsStream` calls it once per sample.
@@ -50,9 +53,9 @@ class GmsParams:
     stiffness_N_per_m
         Element stiffnesses k_i, shape (N,), all > 0.
     limit_N
-        Element limits W_i at level s = 1 (at rest), shape (N,), all >= 0.
+        Element stick limits W_i, shape (N,), all >= 0.
     slip_level
-        C_v: the level s of a moving contact relative to rest (seed: 1.2).
+        C_v: slip force of a moving element relative to its stick limit (seed: 1.2).
     transition_velocity_m_s
         v_t: speed over which s moves from 1 to ``slip_level``.
     transition_exponent
@@ -123,11 +126,23 @@ class GmsParams:
     def virgin_curve(self, displacement_m: ArrayLike, level: float = 1.0) -> FloatArray:
         """Force after a monotone displacement from the virgin state at a fixed level.
 
-        F(x) = sum_i sign(x) min(k_i |x|, level W_i) (no viscous part).
+        F(x) = sign(x) sum_i phi(|x|, W_i / k_i) k_i with the element shape
+        :func:`element_shape` (no viscous part).
         """
         x = np.asarray(displacement_m, dtype=float)
-        mag = np.minimum.outer(np.abs(x), level * self.limit_N / self.stiffness_N_per_m)
-        return np.sign(x) * (mag @ self.stiffness_N_per_m)
+        shape = element_shape(np.abs(x), self.limit_N / self.stiffness_N_per_m, level)
+        return np.sign(x) * (shape @ self.stiffness_N_per_m)
+
+
+def element_shape(displacement_m: FloatArray, breakpoint_m: FloatArray, level: float) -> FloatArray:
+    """Virgin force per unit stiffness, phi(x, Delta) = x for x <= Delta, else level Delta.
+
+    Shape (len(displacement_m), len(breakpoint_m)); the virgin curve is linear in
+    the stiffnesses, which is what the reduction's least squares relies on.
+    """
+    x = np.asarray(displacement_m, dtype=float)[:, None]
+    b = np.asarray(breakpoint_m, dtype=float)[None, :]
+    return np.where(x <= b, x, level * b)
 
 
 def _frozen_vector(values: ArrayLike) -> FloatArray:
@@ -209,13 +224,17 @@ def _run(
             remain = math.exp(-rate * abs(dx) / (level * speed))
         total = 0.0
         for i in range(k.size):
-            limit = level * w[i]
-            stick = f[i] + k[i] * dx
-            clipped = min(max(stick, -limit), limit)
-            target = d[i] * limit
+            limit = w[i]
             slipping = (d[i] * dx >= 0.0) & (d[i] != 0.0)
-            f_new = target + (f[i] - target) * remain if slipping else clipped
-            d[i] = d[i] if slipping else (stick > limit) * 1.0 - (stick < -limit) * 1.0
+            # An element leaving slip (a reversal) restarts from its stick limit.
+            stick = (f[i] if d[i] == 0.0 else d[i] * limit) + k[i] * dx
+            entering = (stick > limit) * 1.0 - (stick < -limit) * 1.0
+            direction = d[i] if slipping else entering
+            target = direction * level * limit
+            start = f[i] if slipping else direction * limit
+            clipped = min(max(stick, -limit), limit)
+            f_new = target + (start - target) * remain if direction != 0.0 else clipped
+            d[i] = direction
             f[i] = f_new
             total += f_new
         out[j] = total + scalars[_VISCOUS] * velocity[j]

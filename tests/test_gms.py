@@ -32,9 +32,13 @@ def path(extrema: list[float], step_m: float = STEP_m) -> tuple[np.ndarray, np.n
     return np.concatenate(xs), np.concatenate(vs)
 
 
-def virgin(k: np.ndarray, w: np.ndarray, x: float) -> float:
-    """sum_i sign(x) min(k_i |x|, W_i): the independent expectation."""
-    return math.copysign(float(np.sum(np.minimum(k * abs(x), w))), x)
+def virgin(k: np.ndarray, w: np.ndarray, x: float, level: float = 1.0) -> float:
+    """sign(x) sum_i (k_i |x| while stuck, else level W_i): the seed's bristle law.
+
+    At level 1 this is sum_i min(k_i x, W_i), Al-Bender's virgin curve.
+    """
+    stuck = k * abs(x) <= w
+    return math.copysign(float(np.sum(np.where(stuck, k * abs(x), level * w))), x)
 
 
 element_sets = st.builds(elements, st.integers(1, 12), st.integers(0, 10_000))
@@ -49,7 +53,7 @@ def test_virgin_curve_is_sum_of_clipped_elements(
     p = GmsParams(k, w, slip_level=slip_level)
     x, v = path([0.0, end_m])
     force, _ = simulate(p, x, v)
-    expected = [virgin(k, slip_level * w, xi) for xi in x[1:]]
+    expected = [virgin(k, w, xi, slip_level) for xi in x[1:]]
     np.testing.assert_allclose(force[1:], expected, rtol=1e-9, atol=1e-12)
 
 
@@ -114,7 +118,7 @@ def test_inner_loop_is_wiped_out_and_closes_at_its_return_point(
 @given(
     element_sets,
     st.lists(st.floats(-3e-6, 3e-6), min_size=2, max_size=6),
-    st.floats(0.5, 2.0),
+    st.floats(1.0, 2.0),
     st.floats(0.0, 5.0),
 )
 def test_closed_loops_dissipate(
@@ -223,3 +227,13 @@ def test_bad_parameters_are_refused(kwargs: dict[str, object], field: str) -> No
     args: dict[str, object] = {"stiffness_N_per_m": [1e6], "limit_N": [0.1], **kwargs}
     with pytest.raises(ValueError, match=field):
         GmsParams(**args)  # type: ignore[arg-type]
+
+
+def test_reversal_restarts_from_the_stick_limit() -> None:
+    """Seed Eq. 1: a slipping bristle carries C_v W; reversed, it sticks again from W."""
+    k, w, c_v = 1e6, 0.1, 1.2
+    p = GmsParams(np.array([k]), np.array([w]), slip_level=c_v)
+    x = np.array([0.0, 1e-6, 1e-6 - 5e-8])
+    force, _ = simulate(p, x, np.array([0.0, SPEED_m_s, -SPEED_m_s]))
+    assert force[1] == pytest.approx(c_v * w)
+    assert force[2] == pytest.approx(w - k * 5e-8)
