@@ -54,10 +54,11 @@ class E2eCodec:
         except (OSError, KeyError, cantools.database.Error) as err:
             raise BusError(f"{path}: not a usable feedforward DBC ({err})") from err
         self.dbc_path = path
-        if current.maximum is None:
-            raise BusError(f"{path}: signal FfCommand.Current needs a maximum")
+        if current.minimum is None or current.maximum is None:
+            raise BusError(f"{path}: signal FfCommand.Current needs a minimum and a maximum")
         self.scale_A = float(current.scale)
-        self.limit_raw = round(current.maximum / self.scale_A)
+        self.raw_range = (round(current.minimum / self.scale_A), round(current.maximum / self.scale_A))
+        self.limit_raw = min(-self.raw_range[0], self.raw_range[1])
 
     def to_raw(self, current_A: float) -> int:
         """Current in A -> the ``Current`` signal's raw value (not saturated)."""
@@ -82,12 +83,15 @@ class E2eCodec:
         )
 
     def check_command(self, data: bytes) -> tuple[int, int] | None:
-        """``(counter, raw current)`` of an intact command frame, else None."""
+        """``(counter, raw current)`` of an intact, in-range command frame, else None."""
         if len(data) != self.command.length or not check_profile5_crc(
             data, self.command_data_id
         ):
             return None
         fields = _decode_raw(self.command, data)
+        low, high = self.raw_range
+        if not low <= fields["Current"] <= high:  # decoding does no range check
+            return None
         return fields["Counter"], fields["Current"]
 
     def status_frame(

@@ -1,0 +1,144 @@
+/* See ff_handler.h. Integer arithmetic only; no dynamic memory. */
+#include "ff_handler.h"
+
+#include <stdbool.h>
+
+#include "gms_ff.h"
+
+#define COUNTER_MODULUS 256u
+
+struct ff_handler {
+    struct ff_config cfg;
+    bool synced;
+    uint8_t last_counter;
+    uint32_t cycles_since_reference;
+    bool has_fresh;
+    int16_t fresh_raw;
+    int16_t output_raw;
+    uint32_t cycles_since_fresh;
+    bool link_lost;
+    uint32_t counts[FF_VERDICT_COUNT];
+};
+
+size_t ff_handler_size(void) { return sizeof(struct ff_handler); }
+
+static uint32_t inc_saturating(uint32_t value) { return value == UINT32_MAX ? value : value + 1u; }
+
+static uint16_t crc16_update(uint16_t crc, uint8_t byte)
+{
+    crc ^= (uint16_t)((uint16_t)byte << 8);
+    for (int bit = 0; bit < 8; bit++) {
+        crc = (crc & 0x8000u) ? (uint16_t)((crc << 1) ^ 0x1021u) : (uint16_t)(crc << 1);
+    }
+    return crc;
+}
+
+uint16_t ff_crc16(const uint8_t *data, size_t size, uint16_t data_id)
+{
+    uint16_t crc = 0xFFFFu;
+    for (size_t i = 0; i < size; i++) {
+        crc = crc16_update(crc, data[i]);
+    }
+    crc = crc16_update(crc, (uint8_t)(data_id & 0xFFu));
+    return crc16_update(crc, (uint8_t)(data_id >> 8));
+}
+
+void ff_init(struct ff_handler *h, const struct ff_config *cfg)
+{
+    *h = (struct ff_handler){0};
+    h->cfg = *cfg;
+    h->link_lost = true;
+}
+
+static void take_reference(struct ff_handler *h, uint8_t counter)
+{
+    h->last_counter = counter;
+    h->cycles_since_reference = 0;
+}
+
+static enum ff_verdict classify(struct ff_handler *h, const uint8_t *data, size_t size)
+{
+    struct gms_ff_ff_command_t msg;
+
+    if (size != GMS_FF_FF_COMMAND_LENGTH || gms_ff_ff_command_unpack(&msg, data, size) != 0) {
+        return FF_CORRUPT;
+    }
+    if (msg.crc != ff_crc16(&data[2], size - 2u, h->cfg.data_id)) {
+        return FF_CORRUPT;
+    }
+    /* the generated unpack does no range check: the firmware must */
+    if (!gms_ff_ff_command_current_is_in_range(msg.current)) {
+        return FF_CORRUPT;
+    }
+    if (!h->synced) {
+        h->synced = true;
+        take_reference(h, msg.counter);
+        return FF_RESYNC;
+    }
+    uint32_t delta = ((uint32_t)msg.counter - h->last_counter) % COUNTER_MODULUS;
+    if (delta == 0u) {
+        return FF_DUPLICATE;
+    }
+    if (delta >= COUNTER_MODULUS / 2u) {
+        return FF_OUT_OF_ORDER;
+    }
+    if ((int64_t)h->cycles_since_reference - (int64_t)delta > (int64_t)h->cfg.max_age_cycles) {
+        return FF_STALE;
+    }
+    take_reference(h, msg.counter);
+    h->has_fresh = true;
+    h->fresh_raw = msg.current;
+    return FF_ACCEPTED;
+}
+
+int ff_on_frame(struct ff_handler *h, const uint8_t *data, size_t size)
+{
+    enum ff_verdict verdict = classify(h, data, size);
+    h->counts[verdict] = inc_saturating(h->counts[verdict]);
+    return (int)verdict;
+}
+
+static int16_t saturate(int16_t value, int16_t limit)
+{
+    return value > limit ? limit : (value < -limit ? (int16_t)-limit : value);
+}
+
+static int16_t toward_zero(int16_t value, int32_t step)
+{
+    if (value > 0) {
+        return (int16_t)(value > step ? value - step : 0);
+    }
+    return (int16_t)(-value > step ? value + step : 0);
+}
+
+int16_t ff_tick(struct ff_handler *h)
+{
+    bool was_lost = h->link_lost;
+
+    if (h->has_fresh) {
+        h->cycles_since_fresh = 0;
+        h->link_lost = false;
+        h->output_raw = saturate(h->fresh_raw, h->cfg.limit_raw);
+    } else {
+        h->cycles_since_fresh = inc_saturating(h->cycles_since_fresh);
+        if (h->cycles_since_fresh > h->cfg.timeout_cycles) {
+            h->link_lost = true;
+        }
+        if (h->link_lost) {
+            int32_t step = ((int32_t)h->cfg.limit_raw + (int32_t)h->cfg.ramp_cycles - 1)
+                           / (int32_t)h->cfg.ramp_cycles;
+            h->output_raw = toward_zero(h->output_raw, step);
+        }
+    }
+    h->has_fresh = false;
+    h->cycles_since_reference = inc_saturating(h->cycles_since_reference);
+    if (h->link_lost && !was_lost) {
+        h->synced = false; /* the counter reference is void after an outage */
+    }
+    return h->output_raw;
+}
+
+uint32_t ff_count(const struct ff_handler *h, int verdict)
+{
+    return (verdict >= 0 && verdict < FF_VERDICT_COUNT) ? h->counts[verdict] : 0u;
+}
