@@ -16,7 +16,10 @@ from collections.abc import Sequence
 from . import __version__
 from .errors import GmsCompError
 
-SUBCOMMANDS: tuple[str, ...] = ("model",)
+SUBCOMMANDS: tuple[str, ...] = (
+    "model",
+    "sweep",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,148 @@
+"""Table families on Dask: validation, resume, identity with the serial path, interpolation."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gms_comp.cli import main
+from gms_comp.config import default_config_path
+from gms_comp.errors import ConfigError, TableError
+from gms_comp.scaleout import dask_client, run_jobs
+from gms_comp.sweep import load_family, load_sweep, run_sweep
+from gms_comp.table import read_table
+
+LOADS = "[25.0, 50.0]"
+
+
+def _sweep_file(tmp_path: Path, axes: str, elements: int = 4) -> Path:
+    path = tmp_path / "sweep.toml"
+    path.write_text(
+        f'[sweep]\nbase_config = "{default_config_path()}"\nelements = {elements}\n'
+        f"[sweep.axes]\n{axes}\n"
+    )
+    return path
+
+
+@pytest.mark.parametrize(
+    ("body", "key"),
+    [
+        ('[sweep]\nelements = 4\n[sweep.axes]\n"stand.nope" = [1.0]\n', "sweep.axes.stand.nope"),
+        ('[sweep]\nelements = 0\n[sweep.axes]\n"stand.ball_loads_N" = [1.0]\n', "sweep.elements"),
+        ("[sweep]\nelements = 4\n", "sweep.axes"),
+        ('[sweep]\ncolour = "red"\n', "sweep.colour"),
+        ('[sweep]\n[sweep.axes]\n"ball_loads_N" = [1.0]\n', "sweep.axes.ball_loads_N"),
+        ("[sweep\n", ""),
+    ],
+)
+def test_bad_sweep_files_name_the_key(tmp_path: Path, body: str, key: str) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(body)
+    with pytest.raises(ConfigError) as info:
+        load_sweep(path)
+    assert info.value.key == key
+    assert str(path) in str(info.value)
+
+
+def test_grid_is_the_cartesian_product(tmp_path: Path) -> None:
+    spec = load_sweep(
+        _sweep_file(
+            tmp_path,
+            f'"stand.ball_loads_N" = {LOADS}\n"bearing.friction_coefficient" = [1e-3, 2e-3, 3e-3]',
+        )
+    )
+    grid = spec.grid()
+    assert len(grid) == 6
+    assert {(g["stand.ball_loads_N"], g["bearing.friction_coefficient"]) for g in grid} == {
+        (load, mu) for load in (25.0, 50.0) for mu in (1e-3, 2e-3, 3e-3)
+    }
+
+
+def test_invalid_point_is_reported_and_the_others_complete(tmp_path: Path) -> None:
+    # 3.0 mm < ball radius 3.175 mm: a groove narrower than the ball is refused by the loader
+    spec = load_sweep(
+        _sweep_file(tmp_path, '"bearing.raceway_radius_m" = [3.0e-3, 3.5e-3, 4.0e-3]')
+    )
+    manifest = run_sweep(spec, tmp_path / "fam")
+    status = [p["status"] for p in manifest["points"]]
+    assert status == ["invalid", "ok", "ok"]
+    bad = manifest["points"][0]
+    assert "raceway_radius_m" in bad["reason"] and "0000.toml" in bad["reason"]
+    on_disk = json.loads((tmp_path / "fam" / "manifest.json").read_text())
+    assert on_disk["points"] == manifest["points"]
+    for row in manifest["points"][1:]:
+        table = read_table(tmp_path / "fam" / row["table"])
+        assert table.source_sha256 == row["config_sha256"]
+        assert table.n_elements == 4
+
+
+def test_rerun_resumes_without_recomputing(tmp_path: Path) -> None:
+    spec = load_sweep(_sweep_file(tmp_path, f'"stand.ball_loads_N" = {LOADS}'))
+    run_sweep(spec, tmp_path / "fam")
+    tables = sorted((tmp_path / "fam" / "points").glob("*.json"))
+    stamps = [t.stat().st_mtime_ns for t in tables]
+    again = run_sweep(spec, tmp_path / "fam")
+    assert all(p["status"] == "ok" and p.get("resumed") for p in again["points"])
+    assert [t.stat().st_mtime_ns for t in tables] == stamps
+
+
+def test_family_interpolates_between_loads_and_refuses_outside(tmp_path: Path) -> None:
+    spec = load_sweep(_sweep_file(tmp_path, f'"stand.ball_loads_N" = {LOADS}'))
+    run_sweep(spec, tmp_path / "fam")
+    family = load_family(tmp_path / "fam")
+    lo = family.table_at({"stand.ball_loads_N": 25.0}).params
+    hi = family.table_at({"stand.ball_loads_N": 50.0}).params
+    mid = family.table_at({"stand.ball_loads_N": 37.5}).params
+    np.testing.assert_allclose(mid.limit_N, 0.5 * (lo.limit_N + hi.limit_N), rtol=1e-12)
+    np.testing.assert_allclose(
+        mid.stiffness_N_per_m, 0.5 * (lo.stiffness_N_per_m + hi.stiffness_N_per_m)
+    )
+    # more load, more friction: the total element limit grows with the preload
+    assert hi.limit_N.sum() > lo.limit_N.sum()
+    with pytest.raises(TableError, match="outside"):
+        family.table_at({"stand.ball_loads_N": 80.0})
+
+
+def test_local_cluster_gives_the_serial_result(tmp_path: Path) -> None:
+    spec = load_sweep(_sweep_file(tmp_path, f'"stand.ball_loads_N" = {LOADS}'))
+    serial = run_sweep(spec, tmp_path / "serial")
+    with dask_client(n_workers=2) as client:
+        parallel = run_sweep(spec, tmp_path / "dask", client=client)
+    for a, b in zip(serial["points"], parallel["points"], strict=True):
+        assert a["config_sha256"] == b["config_sha256"]
+        assert a["fidelity"] == b["fidelity"]
+        ta, tb = (
+            read_table(tmp_path / "serial" / a["table"]),
+            read_table(tmp_path / "dask" / b["table"]),
+        )
+        np.testing.assert_array_equal(ta.params.stiffness_N_per_m, tb.params.stiffness_N_per_m)
+        np.testing.assert_array_equal(ta.params.limit_N, tb.params.limit_N)
+
+
+def _dies_once(marker: str) -> int:
+    """Kill the worker process the first time it runs; succeed when rescheduled."""
+    if not os.path.exists(marker):
+        Path(marker).write_text("died")
+        os._exit(1)
+    return 7
+
+
+def test_jobs_survive_a_dying_worker(tmp_path: Path) -> None:
+    marker = str(tmp_path / "marker")
+    with dask_client(n_workers=2) as client:
+        results = list(run_jobs(_dies_once, [marker], client=client))
+    assert [(r.ok, r.value) for r in results] == [(True, 7)]
+
+
+def test_sweep_command_writes_a_manifest(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = _sweep_file(tmp_path, '"bearing.raceway_radius_m" = [3.0e-3, 3.5e-3]')
+    code = main(["sweep", str(path), "--serial", "-o", str(tmp_path / "fam"), "--json"])
+    manifest = json.loads(capsys.readouterr().out)
+    assert code == 1  # one point is invalid: the run says so
+    assert [p["status"] for p in manifest["points"]] == ["invalid", "ok"]
