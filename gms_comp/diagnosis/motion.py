@@ -18,6 +18,7 @@ from scipy import signal
 from ..traces import Trace
 
 FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
 
 
 @dataclass(frozen=True)
