@@ -19,6 +19,7 @@ from .errors import GmsCompError
 SUBCOMMANDS: tuple[str, ...] = (
     "model",
     "sweep",
+    "stream",
 )
 
 
