@@ -18,8 +18,11 @@ from .errors import GmsCompError
 
 SUBCOMMANDS: tuple[str, ...] = (
     "model",
+    "diagnose",
+    "profile",
     "sweep",
     "stream",
+    "simulate",
 )
 
 

@@ -57,7 +57,6 @@ class CompensatorConfig:
     feed: Literal["reference", "measured"] = "reference"
     look_ahead_cycles: int = field(default=1, metadata=in_range(0, 1000))
     table_path: str = ""
-    table_elements: int = field(default=12, metadata=in_range(1, 1000))
     friction_level_scale: float = field(default=1.0, metadata=positive())
     current_limit_A: float = field(default=3.0, metadata=positive())
     rate_limit_A_per_s: float = field(default=2000.0, metadata=positive())

@@ -91,7 +91,7 @@ class PlantConfig:
     position_noise_m: float = field(default=1e-9, metadata=non_negative())
     noise_seed: int = 0
     ball_set_count: float = field(default=40.0, metadata=non_negative())
-    substeps: int = field(default=2, metadata=in_range(1, 64))
+    substeps: int = field(default=1, metadata=in_range(1, 64))
 
 
 def state_size(cfg: PlantConfig) -> int:

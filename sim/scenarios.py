@@ -31,6 +31,9 @@ from gms_comp.config import (
 )
 from gms_comp.errors import ScenarioError
 from gms_comp.observer import CompensatorConfig, ForceModel, FrictionObserver, HasGmsParams
+from gms_comp.reduction import reduce_to_gms
+from gms_comp.table import read_table
+from gms_comp.transient import BallSetFriction
 
 from .closed_loop import RunResult, run
 from .controller import CascadeController, ControllerConfig, design
@@ -58,7 +61,7 @@ class ScenarioConfig:
     jerk_window_s: float = field(default=0.005, metadata=positive())
     dwell_s: float = field(default=0.2, metadata=positive())
     transport_delay_cycles: int = field(default=1, metadata=in_range(0, 1000))
-    reversal_window_s: float = field(default=0.05, metadata=positive())
+    reversal_window_s: float = field(default=0.15, metadata=positive())
     min_stop_s: float = field(default=0.01, metadata=positive())
     calibration_travel_m: float = field(default=1e-3, metadata=positive())
     calibration_velocities_m_s: tuple[float, ...] = field(default=(0.01, 0.05), metadata=positive())
@@ -128,20 +131,14 @@ def build_reference(s: Scenario) -> Reference:
 
 def ball_set_friction(ball: BallConfig) -> Friction:
     """The friction truth of one ball set: the physics layer's transient ball model."""
-    from gms_comp.transient import BallSetFriction
-
     return BallSetFriction(ball)
 
 
 def reduced_table(s: Scenario) -> HasGmsParams:
-    """The GMS table: the configured file, else reduced from the ball model."""
-    from gms_comp.reduction import reduce_to_gms
-
-    from gms_comp.table import read_table
-
+    """The GMS table: the configured file, else reduced from the ball model ([table])."""
     if s.compensator.table_path:
         return read_table(Path(s.path).parent / s.compensator.table_path)
-    return reduce_to_gms(s.ball, s.compensator.table_elements)
+    return reduce_to_gms(s.ball)
 
 
 @dataclass(frozen=True)

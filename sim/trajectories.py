@@ -18,6 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from gms_comp.profiles import seed_fig7_profile
+
 FloatArray = NDArray[np.float64]
 
 
@@ -113,8 +115,6 @@ def step_stop(
     period_s: float, acceleration_window_s: float, jerk_window_s: float, dwell_s: float
 ) -> Reference:
     """The seed's Fig. 7 profile (0 -> 1 mm in 0.1 mm steps with stops, and back)."""
-    from gms_comp.profiles import seed_fig7_profile
-
     _t, _x, v = seed_fig7_profile(sample_rate_Hz=1.0 / period_s)
     return from_velocity(
         np.asarray(v, dtype=float), period_s, acceleration_window_s, jerk_window_s, dwell_s

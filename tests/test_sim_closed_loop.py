@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pytest
@@ -28,7 +29,7 @@ def _physics(table: GmsParams = STAND_IN) -> Physics:
     return Physics(truth=lambda ball: GmsStream(STAND_IN), table=lambda s: Table(table))
 
 
-def _scenario(**scenario: object) -> Scenario:
+def _scenario(**scenario: Any) -> Scenario:
     s = load_scenario()
     short = {"revolutions": 0.6, "dwell_s": 0.05, **scenario}
     return dataclasses.replace(s, scenario=dataclasses.replace(s.scenario, **short))

@@ -1,0 +1,129 @@
+"""``gms-comp simulate``: one scenario of the simulated axis under every strategy."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+from sim.closed_loop import RunResult
+from sim.link import DirectLink, FeedforwardLink
+from sim.scenarios import Scenario, load_scenario, run_strategies, score
+from sim.trajectories import reversals
+
+from ..errors import ScenarioError
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "simulate",
+        help="run the simulated linear-motor axis under each friction compensation",
+        description=(
+            "Closed-loop simulation of a linear-motor axis whose friction is the transient "
+            "ball model, with no compensation, Coulomb+viscous, LuGre and GMS feedforward. "
+            "Without CONFIG: the default scenario on the packaged Table 1 physics."
+        ),
+    )
+    parser.add_argument("config", nargs="?", type=Path, help="config TOML (default: Table 1)")
+    parser.add_argument("--json", type=Path, metavar="OUT", help="write the scores as JSON")
+    parser.add_argument(
+        "--plot", type=Path, metavar="PNG", help="plot the following error around a reversal"
+    )
+    parser.add_argument(
+        "--via-can",
+        action="store_true",
+        help="carry the feedforward over the virtual CAN bus and drive emulator ([can] section)",
+    )
+    parser.set_defaults(func=run)
+
+
+@contextlib.contextmanager
+def _links(s: Scenario, via_can: bool) -> Iterator[Callable[[int], FeedforwardLink]]:
+    """Link factory for the runs: direct (with the configured delay) or over CAN."""
+    if not via_can:
+        yield DirectLink
+        return
+    from firmware_bridge.link import CanFeedforwardLink
+    from firmware_bridge.settings import load_can_config
+
+    cfg = load_can_config(s.path)
+    with contextlib.ExitStack() as stack:
+
+        def open_link(_delay_cycles: int) -> FeedforwardLink:
+            # The bus brings its own transport delay; the configured one is not added.
+            return stack.enter_context(CanFeedforwardLink(cfg))
+
+        yield open_link
+
+
+def run(args: argparse.Namespace) -> int:
+    s = load_scenario(args.config)
+    started = time.perf_counter()
+    with _links(s, args.via_can) as link:
+        results = run_strategies(s, link=link)
+    elapsed_s = time.perf_counter() - started
+    scores = {name: score(r, s.scenario) for name, r in results.items()}
+    simulated_s = sum(r.reference.duration_s for r in results.values())
+    report = {
+        "config": s.path,
+        "scenario": {
+            "trajectory": s.scenario.trajectory,
+            "duration_s": next(iter(results.values())).reference.duration_s,
+            "servo_rate_Hz": s.controller.servo_rate_Hz,
+            "transport_delay_cycles": s.scenario.transport_delay_cycles,
+            "via_can": bool(args.via_can),
+        },
+        "strategies": scores,
+        "realtime_factor": simulated_s / elapsed_s,
+    }
+    print(_table(scores))
+    if args.json:
+        args.json.write_text(json.dumps(report, indent=2) + "\n")
+    if args.plot:
+        _plot(results, s, args.plot)
+    return 0
+
+
+def _table(scores: dict[str, dict[str, float | None]]) -> str:
+    """Scores in nanometres, one strategy per line."""
+
+    def nm(value: float | None) -> str:
+        return "-" if value is None else f"{value * 1e9:.1f}"
+
+    lines = [f"{'strategy':<16}{'peak reversal nm':>18}{'rms nm':>10}{'peak stop nm':>14}"]
+    for name, sc in scores.items():
+        lines.append(
+            f"{name:<16}{nm(sc['peak_reversal_error_m']):>18}{nm(sc['rms_error_m']):>10}"
+            f"{nm(sc['peak_stop_error_m']):>14}"
+        )
+    return "\n".join(lines)
+
+
+def _plot(results: dict[str, RunResult], s: Scenario, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    first = next(iter(results.values())).reference
+    turns = reversals(first)
+    if turns.size == 0:
+        raise ScenarioError(f"{s.path}: the trajectory has no reversal to plot")
+    window = round(s.scenario.reversal_window_s / first.period_s)
+    lo, hi = max(0, int(turns[0]) - window // 2), min(first.cycles, int(turns[0]) + window)
+    t_ms = (first.time_s[lo:hi] - first.time_s[turns[0]]) * 1e3
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for name, r in results.items():
+        ax.plot(t_ms, r.error_m[lo:hi] * 1e6, label=name)
+    ax.axvline(0.0, color="0.6", lw=0.8)
+    ax.set_xlabel("time from the reversal [ms]")
+    ax.set_ylabel("following error [µm]")
+    ax.set_title(f"{s.scenario.trajectory}: following error at the first reversal")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
