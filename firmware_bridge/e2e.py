@@ -57,7 +57,9 @@ class E2eCodec:
         if current.minimum is None or current.maximum is None:
             raise BusError(f"{path}: signal FfCommand.Current needs a minimum and a maximum")
         self.scale_A = float(current.scale)
-        self.raw_range = (round(current.minimum / self.scale_A), round(current.maximum / self.scale_A))
+        self.raw_range = (
+            round(current.minimum / self.scale_A), round(current.maximum / self.scale_A)
+        )
         self.limit_raw = min(-self.raw_range[0], self.raw_range[1])
 
     def to_raw(self, current_A: float) -> int:

@@ -31,7 +31,7 @@ pytestmark = pytest.mark.skipif(
 
 
 class CConfig(ctypes.Structure):
-    _fields_ = [  # noqa: RUF012  (ctypes layout of struct ff_config)
+    _fields_ = [  # the layout of struct ff_config
         ("data_id", ctypes.c_uint16),
         ("limit_raw", ctypes.c_int16),
         ("timeout_cycles", ctypes.c_uint32),
