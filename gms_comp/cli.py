@@ -23,6 +23,8 @@ SUBCOMMANDS: tuple[str, ...] = (
     "sweep",
     "stream",
     "simulate",
+    "table",
+    "bench",
 )
 
 

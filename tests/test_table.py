@@ -171,3 +171,18 @@ def test_errors_belong_to_the_project_root_and_to_value_error(tmp_path: Path) ->
         read_table(tmp_path / "absent.json")
     with pytest.raises(ValueError):
         read_table(write_doc(tmp_path, [1, 2, 3]))
+
+
+def test_table_command_writes_a_readable_table(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from gms_comp.cli import main
+
+    out = tmp_path / "t8.json"
+    assert main(["table", "-o", str(out), "--elements", "8", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    table = read_table(out)
+    assert summary["elements"] == table.n_elements <= 8
+    assert summary["fidelity"]["rms_rel"] == table.fidelity.rms_rel <= 0.02
+    assert summary["fidelity"]["max_rel"] >= summary["fidelity"]["rms_rel"]
+    assert main(["table", str(tmp_path / "absent.toml"), "-o", str(out)]) == 2
