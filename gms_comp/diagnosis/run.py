@@ -192,6 +192,15 @@ def diagnose(
             "force_N": main.force_N,
             "baseline_N": base_pred[0],
             "extended_N": extended_pred[0],
+            **(
+                {
+                    "validation_force_N": datas[1].force_N,
+                    "validation_baseline_N": base_pred[1],
+                    "validation_extended_N": extended_pred[1],
+                }
+                if len(datas) > 1
+                else {}
+            ),
         },
     )
 

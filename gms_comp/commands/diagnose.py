@@ -1,0 +1,111 @@
+"""``gms-comp diagnose``: where the model is wrong on a measured trace, the cause, the gain."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..config import config_hash
+from ..diagnosis import emps
+from ..diagnosis.run import Diagnosis, diagnose, load_diagnosis_config
+from ..effects import effect_to_dict
+from ..table import Extension, Fidelity, GmsTable, write_table
+from ..traces import Trace, load_trace, parse_mapping
+
+
+def register(subparsers: Any) -> None:
+    p = subparsers.add_parser("diagnose", help="diagnose a measured trace against the model")
+    p.add_argument("trace", help="canonical CSV, EMPS .mat, or any .csv/.mat with --map")
+    p.add_argument("--config", help="config file ([diagnosis] section)")
+    p.add_argument(
+        "--force-kind",
+        choices=("friction", "drive"),
+        help="what force_N is (default: drive for EMPS files, else friction)",
+    )
+    p.add_argument("--validate", metavar="TRACE2", help="held-out trace (else blocks of TRACE)")
+    p.add_argument(
+        "--map",
+        action="append",
+        default=[],
+        metavar="COLUMN=EXPR",
+        help="column mapping, e.g. position_m=pos_mm*0.001 (repeatable)",
+    )
+    p.add_argument("--json", metavar="OUT.json", help="write the result here (else stdout)")
+    p.add_argument("--report", metavar="DIR", help="write plots and the extended table here")
+    p.add_argument("--table", metavar="OUT", help="write the extended model as a GMS table")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    mapping = parse_mapping(args.map, "--map") if args.map else None
+    trace = load_trace(args.trace, mapping)
+    validation = load_trace(args.validate, mapping) if args.validate else None
+    kind = args.force_kind or trace.force_kind or "friction"
+    result = diagnose(trace, kind, validation, load_diagnosis_config(args.config))
+    doc = result.to_json()
+    doc["trace"] = str(args.trace)
+    if trace.force_kind == "drive" and kind == "drive":
+        doc.update(_benchmark_errors(trace, validation, result))
+    table_path = args.table or (Path(args.report) / "extended.table.json" if args.report else None)
+    if args.report:
+        Path(args.report).mkdir(parents=True, exist_ok=True)
+    if table_path is not None:
+        write_table(table_path, _table(result, args.trace))
+        doc["table"] = str(table_path)
+    if args.report:
+        from ..diagnosis.report import write_report  # matplotlib only when asked for
+
+        doc["report"] = [str(p) for p in write_report(result, args.report)]
+    text = json.dumps(doc, indent=2)
+    if args.json:
+        Path(args.json).write_text(text + "\n")
+    else:
+        sys.stdout.write(text + "\n")
+    return 0
+
+
+def _table(result: Diagnosis, trace_path: str) -> GmsTable:
+    level = max(float(result.baseline["sliding_force_N"]), 1e-12)
+    s = result.series
+    worst = float(np.max(np.abs(s["force_N"] - s["extended_N"])))
+    return GmsTable(
+        params=result.gms,
+        source_config=str(trace_path),
+        source_sha256=config_hash(trace_path),
+        fidelity=Fidelity(rms_rel=result.extended_rms_N / level, max_rel=worst / level),
+        extensions=tuple(
+            Extension(d["effect"], d["parameters"]) for d in map(effect_to_dict, result.extensions)
+        ),
+    )
+
+
+def _benchmark_errors(trace: Trace, validation: Trace | None, result: Diagnosis) -> dict[str, Any]:
+    """The EMPS benchmark's relative errors (decimated, first samples dropped) of the
+    IDIM-LS reference and of our baseline and extended models."""
+    s = result.series
+    cut = emps.DROPPED_SAMPLES
+    ref = emps.idim_ls(trace)
+    out: dict[str, Any] = {
+        "relative_error_pct": {
+            "reference_idim_ls": ref.relative_error_pct,
+            "baseline": emps.relative_error_pct(s["force_N"][cut:], s["baseline_N"][cut:]),
+            "extended": emps.relative_error_pct(s["force_N"][cut:], s["extended_N"][cut:]),
+        },
+        "reference_parameters": ref.parameters(),
+    }
+    if validation is not None:
+        out["validation_relative_error_pct"] = {
+            "reference_idim_ls": emps.cross_test(ref, validation).relative_error_pct,
+            "baseline": emps.relative_error_pct(
+                s["validation_force_N"][cut:], s["validation_baseline_N"][cut:]
+            ),
+            "extended": emps.relative_error_pct(
+                s["validation_force_N"][cut:], s["validation_extended_N"][cut:]
+            ),
+        }
+    return out
