@@ -141,3 +141,24 @@ def test_bad_sections_are_refused_naming_the_key(section: str, text: str, key: s
     cls = {"controller": ControllerConfig, "plant": PlantConfig}[section]
     with pytest.raises(ConfigError, match=key):
         parse_section(doc, "x.toml", section, cls)
+
+
+def test_energy_balance_with_the_ball_model_truth() -> None:
+    from gms_comp.config import load_ball_config
+    from gms_comp.transient import BallSetFriction
+    from sim.plant import ScaledFriction
+
+    cfg = _exact()
+    truth = ScaledFriction(BallSetFriction(load_ball_config()), cfg.ball_set_count)
+    axis = LinearMotorAxis(cfg, truth, SERVO_S)
+    motor_J = friction_J = 0.0
+    for k in range(1600):  # 0.4 s of a 5 Hz current: reversals and sliding
+        x, v, i = axis.position_m, axis.velocity_m_s, axis.current_A
+        axis.step(0.6 * math.sin(2 * math.pi * 5.0 * k * SERVO_S))
+        # The friction force is held over the cycle: its work is exact.
+        friction_J += axis.friction_force_N * (axis.position_m - x)
+        mean_power_W = 0.5 * (i * v + axis.current_A * axis.velocity_m_s)
+        motor_J += cfg.force_constant_N_per_A * mean_power_W * SERVO_S
+    kinetic_J = 0.5 * cfg.moving_mass_kg * axis.velocity_m_s**2
+    assert friction_J > 0  # friction only ever takes energy out
+    assert motor_J - friction_J == pytest.approx(kinetic_J, abs=0.01 * motor_J)

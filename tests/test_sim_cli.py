@@ -1,0 +1,71 @@
+"""``gms-comp simulate`` end to end: the JSON it writes and the configs it refuses."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from gms_comp import cli
+from gms_comp.cli import main
+from gms_comp.config import default_config_path
+
+SHORT = """
+[scenario]
+revolutions = 0.3
+dwell_s = 0.05
+"""
+
+
+@pytest.fixture(autouse=True)
+def _only_simulate(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Build the CLI with this subcommand alone, independent of the others' state."""
+    monkeypatch.setattr(cli, "SUBCOMMANDS", ("simulate",))
+
+
+def _config(tmp_path: Path, extra: str) -> Path:
+    path = tmp_path / "scenario.toml"
+    path.write_text(default_config_path().read_text() + extra)
+    return path
+
+
+def test_simulate_writes_scores_for_every_strategy(tmp_path: Path) -> None:
+    out = tmp_path / "scores.json"
+    plot = tmp_path / "reversal.png"
+    code = main(
+        ["simulate", str(_config(tmp_path, SHORT)), "--json", str(out), "--plot", str(plot)]
+    )
+    assert code == 0
+    report = json.loads(out.read_text())
+    strategies = report["strategies"]
+    assert set(strategies) == {"none", "coulomb_viscous", "lugre", "gms"}
+    for scores in strategies.values():
+        assert set(scores) == {"peak_reversal_error_m", "rms_error_m", "peak_stop_error_m"}
+        assert all(v > 0 for v in scores.values())
+    # The truth is the ball model; the table only approximates it, yet it must help.
+    assert strategies["gms"]["peak_reversal_error_m"] < strategies["none"]["peak_reversal_error_m"]
+    assert plot.stat().st_size > 0
+
+
+@pytest.mark.parametrize(
+    ("extra", "names"),
+    [
+        ('[scenario]\ntrajectory = "square"\n', "scenario.trajectory"),
+        ("[scenario]\nrevolutions = 1e6\n", "lasts"),
+        ("[scenario]\nfeed_m_s = 2.0\nradius_m = 0.001\n", "plant.current_limit_A"),
+        ("[controller]\nservo_rate_Hz = -4000\n", "controller.servo_rate_Hz"),
+        ("[controller]\nvelocity_bandwidth_Hz = 3000.0\n", "controller.velocity_bandwidth_Hz"),
+        ("[plant]\nmass_kg = 30\n", "plant.mass_kg"),
+        ("[compensator]\nfeed = 'future'\n", "compensator.feed"),
+    ],
+)
+def test_bad_scenarios_are_refused_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: str, names: str
+) -> None:
+    code = main(["simulate", str(_config(tmp_path, extra))])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.startswith("gms-comp simulate: error:")
+    assert err.count("\n") == 1
+    assert names in err
