@@ -125,15 +125,22 @@ def xi0_from_beta(beta: float, b_m: float, ball_radius_m: float) -> float:
 def area_nodes(bounds: tuple[float, ...], nodes_per_area: int) -> tuple[FloatArray, FloatArray]:
     """Gauss-Legendre nodes and weights on each area between consecutive ``bounds``.
 
-    The integrands are smooth inside each area (the kinks sit at b-, b0, b+),
-    so a few nodes per area integrate them to near machine precision.
+    The kinks of the integrands sit at b-, b0, b+, so each area is smooth
+    inside. The last area ends at the ellipse edge y = b, where a(y) has a
+    square-root end point; there y = b - (b - lo) s^2 makes the integrand
+    smooth in s.
     """
     t, w = np.polynomial.legendre.leggauss(nodes_per_area)
     ys, ws = [], []
-    for lo, hi in itertools.pairwise(bounds):
+    pairs = list(itertools.pairwise(bounds))
+    for lo, hi in pairs[:-1]:
         half = 0.5 * (hi - lo)
         ys.append(lo + half * (t + 1.0))
         ws.append(half * w)
+    lo, hi = pairs[-1]
+    s = 0.5 * (t + 1.0)
+    ys.append(hi - (hi - lo) * s**2)
+    ws.append((hi - lo) * s * w)  # |dy/ds| ds = 2 (hi - lo) s * (w / 2)
     return np.concatenate(ys), np.concatenate(ws)
 
 

@@ -246,8 +246,8 @@ class ModelConfig:
 
     tangential_stiffness: Literal["seed", "mindlin"] = "seed"
     steady_nodes_per_area: int = field(default=48, metadata=in_range(2, 1024))
-    stripes_per_area: int = field(default=6, metadata=in_range(1, 256))
-    bristles_per_stripe: int = field(default=24, metadata=in_range(2, 4096))
+    stripes_per_area: int = field(default=8, metadata=in_range(1, 256))
+    bristles_per_stripe: int = field(default=32, metadata=in_range(2, 4096))
     lambda_min: float = field(default=1.0, metadata=in_range(1.0, 1e6))
     lambda_max: float = field(default=100.0, metadata=in_range(1.0, 1e6))
     lambda_count: int = field(default=25, metadata=in_range(2, 1000))
