@@ -84,9 +84,9 @@ def identification_profile(
             move(amp, speed)
             move(-2 * amp, speed)
             move(amp, speed)
-    xs = np.concatenate([[0.0], *segments])
-    t = np.arange(xs.size) * dt
-    return t, xs, np.gradient(xs, dt)
+    xs = np.concatenate([[0.0], *segments]).astype(np.float64)
+    t = np.arange(xs.size, dtype=np.float64) * dt
+    return t, xs, np.asarray(np.gradient(xs, dt), dtype=np.float64)
 
 
 @dataclass(frozen=True)
