@@ -117,21 +117,29 @@ class DriveEmulator:
         self.drain(now_s)
         return self.tick(now_s)
 
-    def run(self, stop: threading.Event, clock: Callable[[], float] = time.monotonic) -> None:
-        """Run on its own clock until ``stop`` is set (call in a thread)."""
+    def run(self, stop: threading.Event, clock: Callable[[], float] = time.time) -> None:
+        """Run on its own clock until ``stop`` is set (call in a thread).
+
+        Drive cycles fall on a fixed grid and each frame is handled at its bus
+        arrival timestamp, so a thread the OS schedules late still behaves like
+        firmware running on time. ``clock`` must share the bus timestamps' epoch;
+        frames without a plausible timestamp are taken as arriving now.
+        """
         period = self.cfg.cycle_period_s
         next_tick = clock()
         while not stop.is_set():
-            remaining = next_tick - clock()
-            if remaining > 0:
-                msg = self.bus.recv(timeout=remaining)
-                if msg is not None:
-                    self.handle(msg, clock())
+            msg = self.bus.recv(timeout=max(0.0, next_tick - clock()))
+            if msg is None:
+                if clock() >= next_tick:
+                    self.tick(next_tick)
+                    next_tick += period
                 continue
-            self.tick(next_tick)
-            next_tick += period
-            if clock() - next_tick > period:  # the emulator itself fell behind: resynchronise
-                next_tick = clock()
+            now = clock()
+            arrival = msg.timestamp if abs(msg.timestamp - now) < 1.0 else now
+            while next_tick <= arrival:
+                self.tick(next_tick)
+                next_tick += period
+            self.handle(msg, arrival)
 
     def status(self) -> dict[str, Any]:
         """Counters and state, in the units of the JSON report."""

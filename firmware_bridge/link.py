@@ -36,6 +36,11 @@ class CanFeedforwardLink:
         Overrides ``cfg.profile``.
     faults, seed
         Optional fault injection (see :mod:`firmware_bridge.faults`).
+    servo_period_s
+        Period of the ``transfer`` calls, if the servo loop runs faster than
+        the CAN cycle: a frame then goes every ``cycle_period_s / servo_period_s``
+        calls and the drive holds the applied value in between. By default
+        every call is one CAN cycle.
 
     The channel gets a per-instance suffix so that links running side by side
     (tests, parallel simulations) do not hear each other.
@@ -48,6 +53,7 @@ class CanFeedforwardLink:
         profile: ProfileName | None = None,
         faults: Sequence[Fault] = (),
         seed: int = 0,
+        servo_period_s: float | None = None,
     ) -> None:
         cfg = cfg if cfg is not None else CanConfig()
         self.cfg = replace(
@@ -58,6 +64,9 @@ class CanFeedforwardLink:
         self.faults = tuple(faults)
         self.seed = seed
         self._rig: Rig | None = None
+        period = servo_period_s if servo_period_s is not None else self.cfg.cycle_period_s
+        self.calls_per_frame = max(1, round(self.cfg.cycle_period_s / period))
+        self._applied_A = 0.0
 
     def __enter__(self) -> CanFeedforwardLink:
         self._rig = Rig(self.cfg, self.faults, self.seed)
@@ -78,8 +87,10 @@ class CanFeedforwardLink:
         return self._rig
 
     def transfer(self, cycle: int, current_A: float) -> float:
-        """Send ``current_A`` as cycle ``cycle``; the feedforward the drive applies now."""
-        return self.rig.step(cycle, current_A)
+        """Send ``current_A`` in servo cycle ``cycle``; the feedforward the drive applies now."""
+        if cycle % self.calls_per_frame == 0:
+            self._applied_A = self.rig.step(cycle // self.calls_per_frame, current_A)
+        return self._applied_A
 
     def report(self) -> dict[str, Any]:
         return self.rig.report()

@@ -132,8 +132,10 @@ def run_stream(
         def since_start() -> float:
             return clock() - t0
 
+        # the drive and the audit log run on the bus timestamps' clock
+        rig.streamer.send_clock = time.time
         stop = threading.Event()
-        drive = threading.Thread(target=rig.emulator.run, args=(stop, since_start), daemon=True)
+        drive = threading.Thread(target=rig.emulator.run, args=(stop, time.time), daemon=True)
         drive.start()
         try:
             timing = _control_loop(rig, source, duration_s, since_start)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -131,6 +131,7 @@ class Streamer:
     send_errors: int = 0
     source_faults: int = 0
     sent_log: list[tuple[float, bytes]] = field(default_factory=list)
+    send_clock: Callable[[], float] | None = None  # stamps the log at the send, if given
 
     def __post_init__(self) -> None:
         self.shaper = Shaper(self.tx.limit_raw, self.cfg.ramp_cycles)
@@ -142,10 +143,12 @@ class Streamer:
             current_A = None
         raw = self.shaper.step(None if current_A is None else self.tx.to_raw(current_A))
         feedforward, extra = self.tx.frames(cycle, raw)
+        # stamped just before the send: no earlier than the bus's arrival timestamp
+        stamp = now_s if self.send_clock is None else self.send_clock()
         try:
             self.bus.send(feedforward)
             self.frames_sent += 1
-            self.sent_log.append((now_s, bytes(feedforward.data)))
+            self.sent_log.append((stamp, bytes(feedforward.data)))
             for msg in extra:
                 self.bus.send(msg)
         except can.CanError:
