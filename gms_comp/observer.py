@@ -1,9 +1,10 @@
 """Streaming friction observer: model force -> saturated, rate-limited feedforward current.
 
-The observer runs a streaming friction model (the GMS table by default) once per
-servo cycle. It is fed either reference samples, which the caller takes
-``look_ahead`` cycles ahead to cancel the transport and current-loop delays, or
-the measured position and velocity. The force becomes a current through the
+The observer runs a streaming friction model (the GMS table by default, with
+the physical effects of its ``extensions``) once per servo cycle. It is fed
+either reference samples, which the caller takes ``look_ahead`` cycles ahead
+to cancel the transport and current-loop delays, or the measured position and
+velocity. The force becomes a current through the
 motor's force constant, scaled by the friction level, clipped to a current
 limit and rate-limited so that a model fault cannot kick the axis.
 
@@ -26,7 +27,9 @@ from dataclasses import dataclass, field
 from typing import Literal, Protocol, runtime_checkable
 
 from .config import in_range, non_negative, positive
-from .gms import GmsParams, GmsStream
+from .effects import ExtensionStream, effect_from_dict
+from .gms import GmsStream
+from .table import GmsTable
 
 
 @runtime_checkable
@@ -41,13 +44,51 @@ class ForceModel(Protocol):
         ...
 
 
-class HasGmsParams(Protocol):
-    """A GMS table (``gms_comp.table.GmsTable``) as far as the observer needs it."""
+# Effects of the measurement chain, not of the contact: a compensator must not add them
+# (the acceleration feedforward already supplies the inertial force).
+MEASUREMENT_EFFECTS = frozenset({"sensor_lowpass", "inertia"})
 
-    @property
-    def params(self) -> GmsParams:
-        """The element parameters."""
-        ...
+
+class ExtendedGms:
+    """A table's GMS model followed by its physical extensions (``gms_comp.effects``).
+
+    The extensions need time and acceleration; both follow from the samples, one
+    per servo cycle.
+    """
+
+    def __init__(self, table: GmsTable, servo_period_s: float) -> None:
+        self.gms = GmsStream(table.params)
+        physical = [
+            effect_from_dict({"effect": e.effect, "parameters": e.parameters})
+            for e in table.extensions
+            if e.effect not in MEASUREMENT_EFFECTS
+        ]
+        self.extensions = ExtensionStream(physical, servo_period_s)
+        self.servo_period_s = servo_period_s
+        self.reset()
+
+    def reset(self) -> None:
+        """Virgin model and path."""
+        self.gms.reset()
+        self.extensions.reset()
+        self._cycle = 0
+        self._last_velocity_m_s = 0.0
+
+    def step(self, position_m: float, velocity_m_s: float) -> float:
+        """GMS force with the extensions applied."""
+        acceleration = (velocity_m_s - self._last_velocity_m_s) / self.servo_period_s
+        self._last_velocity_m_s = velocity_m_s
+        time_s = self._cycle * self.servo_period_s
+        self._cycle += 1
+        force = self.gms.step(position_m, velocity_m_s)
+        return self.extensions.step(time_s, position_m, velocity_m_s, acceleration, force)
+
+
+def table_model(table: GmsTable, servo_period_s: float) -> ForceModel:
+    """The streaming model of a table: plain GMS, or GMS with its extensions."""
+    if any(e.effect not in MEASUREMENT_EFFECTS for e in table.extensions):
+        return ExtendedGms(table, servo_period_s)
+    return GmsStream(table.params)
 
 
 @dataclass(frozen=True)
@@ -84,7 +125,7 @@ class FrictionObserver:
     Parameters
     ----------
     table
-        A GMS table (anything with ``.params``), or any :class:`ForceModel`.
+        A GMS table (its physical extensions applied), or any :class:`ForceModel`.
     force_constant_N_per_A
         Motor force constant; current = level * force / k_f.
     servo_period_s
@@ -98,6 +139,7 @@ class FrictionObserver:
     Examples
     --------
     >>> import numpy as np
+    >>> from gms_comp.gms import GmsParams
     >>> obs = FrictionObserver(GmsStream(GmsParams(np.array([1e6]), np.array([10.0]))),
     ...                        force_constant_N_per_A=50.0, servo_period_s=2.5e-4)
     >>> [round(obs.step(x, 1e-3), 3) for x in (0.0, 1e-3, 2e-3)]
@@ -106,13 +148,13 @@ class FrictionObserver:
 
     def __init__(
         self,
-        table: HasGmsParams | ForceModel,
+        table: GmsTable | ForceModel,
         force_constant_N_per_A: float,
         servo_period_s: float,
         level: float = 1.0,
         config: CompensatorConfig | None = None,
     ) -> None:
-        self.model = table if isinstance(table, ForceModel) else GmsStream(table.params)
+        self.model = table if isinstance(table, ForceModel) else table_model(table, servo_period_s)
         self.config = config or CompensatorConfig()
         self.force_constant_N_per_A = force_constant_N_per_A
         self.servo_period_s = servo_period_s

@@ -30,9 +30,9 @@ from gms_comp.config import (
     read_toml,
 )
 from gms_comp.errors import ScenarioError
-from gms_comp.observer import CompensatorConfig, ForceModel, FrictionObserver, HasGmsParams
+from gms_comp.observer import CompensatorConfig, ForceModel, FrictionObserver
 from gms_comp.reduction import reduce_to_gms
-from gms_comp.table import read_table
+from gms_comp.table import GmsTable, read_table
 from gms_comp.transient import BallSetFriction
 
 from .closed_loop import RunResult, run
@@ -134,7 +134,7 @@ def ball_set_friction(ball: BallConfig) -> Friction:
     return BallSetFriction(ball)
 
 
-def reduced_table(s: Scenario) -> HasGmsParams:
+def reduced_table(s: Scenario) -> GmsTable:
     """The GMS table: the configured file, else reduced from the ball model ([table])."""
     if s.compensator.table_path:
         return read_table(Path(s.path).parent / s.compensator.table_path)
@@ -146,7 +146,7 @@ class Physics:
     """Where the truth and the table come from (replaceable in tests)."""
 
     truth: Callable[[BallConfig], Friction] = ball_set_friction
-    table: Callable[[Scenario], HasGmsParams] = reduced_table
+    table: Callable[[Scenario], GmsTable] = reduced_table
 
 
 def build_observer(s: Scenario, name: str, physics: Physics) -> FrictionObserver | None:
@@ -154,7 +154,7 @@ def build_observer(s: Scenario, name: str, physics: Physics) -> FrictionObserver
     if name == "none":
         return None
     comp = s.compensator
-    source: HasGmsParams | ForceModel
+    source: GmsTable | ForceModel
     if name == "gms":
         source = physics.table(s)
     else:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -12,16 +13,15 @@ from hypothesis import strategies as st
 
 from gms_comp.gms import GmsParams, GmsStream
 from gms_comp.observer import CompensatorConfig, FrictionObserver
+from gms_comp.table import Extension, Fidelity, GmsTable
 
 SERVO_S = 2.5e-4
 KF = 50.0
 
 
-@dataclass
-class Table:
-    """A table as far as the observer needs it."""
-
-    params: GmsParams
+def _table(params: GmsParams) -> GmsTable:
+    """A bare table around ``params``."""
+    return GmsTable(params, source_config="test", source_sha256="", fidelity=Fidelity(0.0, 0.0))
 
 
 @dataclass
@@ -43,7 +43,7 @@ def _single_element(limit_N: float = 10.0) -> GmsParams:
 
 
 def test_current_is_level_times_force_over_force_constant() -> None:
-    obs = FrictionObserver(Table(_single_element(10.0)), KF, SERVO_S, level=2.0)
+    obs = FrictionObserver(_table(_single_element(10.0)), KF, SERVO_S, level=2.0)
     out = [obs.step(x, 1e-3) for x in np.linspace(0.0, 1e-4, 20)]
     # Sliding: 10 N per element, level 2, 50 N/A -> 0.4 A.
     assert out[-1] == pytest.approx(2.0 * 10.0 / KF)
@@ -119,3 +119,18 @@ def test_adaptation_bounds_must_bracket_one() -> None:
     doc = {"compensator": {"adaptation_level_bounds": [1.2, 2.0]}}
     with pytest.raises(ConfigError, match=r"compensator\.adaptation_level_bounds"):
         parse_section(doc, "c.toml", "compensator", CompensatorConfig)
+
+
+def test_physical_extensions_apply_and_measurement_ones_do_not() -> None:
+    table = dataclasses.replace(
+        _table(_single_element(10.0)),
+        extensions=(
+            Extension("viscous", {"c_Ns_per_m": 100.0}),
+            Extension("inertia", {"mass_kg": 1000.0}),  # the measurement's, not friction
+        ),
+    )
+    obs = FrictionObserver(table, KF, SERVO_S)
+    speed = 0.01
+    out = [obs.step(k * speed * SERVO_S, speed) for k in range(40)]
+    # Sliding: 10 N of elements + 100 Ns/m * 0.01 m/s of viscous = 11 N -> 0.22 A.
+    assert out[-1] == pytest.approx(11.0 / KF)

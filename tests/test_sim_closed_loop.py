@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import pytest
 
 from gms_comp.gms import GmsParams, GmsStream
+from gms_comp.table import Fidelity, GmsTable
 from sim.link import DirectLink
 from sim.scenarios import Physics, Scenario, load_scenario, run_strategies, score
 from sim.trajectories import circle, reversals, sine, stops
@@ -20,13 +20,13 @@ SERVO_S = 2.5e-4
 STAND_IN = GmsParams(np.array([2e5, 5e4, 1e4, 3e3]), np.array([0.1, 0.08, 0.06, 0.04]))
 
 
-@dataclass(frozen=True)
-class Table:
-    params: GmsParams
+def _table(params: GmsParams) -> GmsTable:
+    """A bare table around ``params``."""
+    return GmsTable(params, source_config="test", source_sha256="", fidelity=Fidelity(0.0, 0.0))
 
 
 def _physics(table: GmsParams = STAND_IN) -> Physics:
-    return Physics(truth=lambda ball: GmsStream(STAND_IN), table=lambda s: Table(table))
+    return Physics(truth=lambda ball: GmsStream(STAND_IN), table=lambda s: _table(table))
 
 
 def _scenario(**scenario: Any) -> Scenario:
