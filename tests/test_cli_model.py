@@ -74,3 +74,17 @@ def test_console_entry_point() -> None:
     )
     assert result.returncode == 0, result.stderr
     assert "sliding_force_N" in json.loads(result.stdout)["friction"]
+
+
+def test_plot_writes_four_pngs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["model", "--json", "--plot", str(tmp_path / "figs")]) == 0
+    json.loads(capsys.readouterr().out)  # stdout stays one JSON object
+    names = sorted(p.name for p in (tmp_path / "figs").iterdir())
+    assert names == [
+        "fig3_stick_slip.png",
+        "fig4_fields.png",
+        "fig5_torque_map.png",
+        "fig8_hysteresis.png",
+    ]
+    for name in names:
+        assert (tmp_path / "figs" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

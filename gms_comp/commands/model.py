@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +23,9 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("config", nargs="?", type=Path, help="config TOML (default: Table 1)")
     parser.add_argument("--json", action="store_true", help="print one JSON object (SI units)")
+    parser.add_argument(
+        "--plot", type=Path, metavar="DIR", help="write PNGs of the seed's Figs. 3, 4, 5 and 8"
+    )
     parser.set_defaults(func=run)
 
 
@@ -82,4 +86,9 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(data, indent=2))
     else:
         _print_text(data)
+    if args.plot is not None:
+        from ..plots_physics import write_figures  # matplotlib only when asked for
+
+        for path in write_figures(cfg, args.plot):
+            print(f"wrote {path}", file=sys.stderr if args.json else sys.stdout)
     return 0
