@@ -133,28 +133,36 @@ def _advance(
             old_lo, old_hi = lohi[g, j, 0], lohi[g, j, 1]
             new_lo = math.ceil((s_new - a) / h)
             new_hi = math.floor((s_new + a) / h)
-            for i in range(old_lo, old_hi + 1):
-                if i < new_lo or i > new_hi:
-                    u[g, j, i % ring] = 0.0  # left the contact: relaxed
-            stripe = 0.0
-            previous = 0.0
+            for i in range(old_lo, min(old_hi, new_lo - 1) + 1):
+                u[g, j, i % ring] = 0.0  # left the contact: relaxed
+            for i in range(max(old_lo, new_hi + 1), old_hi + 1):
+                u[g, j, i % ring] = 0.0
+            push = moving if xi > 0.0 else -moving  # saturated u of this sign slips
+            limit = umax * _SATURATED
+            step = xi * ds
+            k = new_lo % ring
+            total_u = 0.0  # sum of the nodes' effective displacement (traction / k_q)
             first = 0.0
+            value = 0.0
             for i in range(new_lo, new_hi + 1):
-                k = i % ring
                 if old_lo <= i <= old_hi:
-                    value = u[g, j, k] + xi * ds
+                    value = u[g, j, k] + step
                 else:  # entered at the leading edge during this step
                     value = xi * direction * (a + direction * (s_new - i * h))
                 value = min(max(value, -umax), umax)
                 u[g, j, k] = value
-                traction = kq * value
-                if abs(value) >= umax * _SATURATED and value * xi * moving > 0.0:
-                    traction *= slip_factor
-                if i > new_lo:
-                    stripe += 0.5 * h * (previous + traction)
-                previous = traction
+                if value * push >= limit:
+                    value *= slip_factor
+                total_u += value
                 if i == new_lo:
-                    first = traction
+                    first = value
+                k += 1
+                if k == ring:
+                    k = 0
+            # Trapezoid over the nodes.
+            previous = kq * value
+            first *= kq
+            stripe = h * (kq * total_u - 0.5 * (first + previous))
             # Gaps between the end nodes and the edges. Leading: the ramp of the
             # bristles that entered in this run, then the end node's value. Trailing:
             # the previous run's ramp, unloaded since the reversal, when that run was
@@ -215,6 +223,23 @@ def _run(
     return out
 
 
+@numba.njit(cache=True)
+def _step(
+    state: np.ndarray,
+    s_new: float,
+    moving: float,
+    u: np.ndarray,
+    lohi: np.ndarray,
+    stripes: np.ndarray,
+    groups: np.ndarray,
+    slip_factor: float,
+) -> float:  # pragma: no cover
+    """One streaming step: the same update as :func:`_run`, without array traffic."""
+    if state[1] == 0.0:
+        _start(s_new, state, u, lohi, stripes)
+    return _advance(state, s_new, moving, u, lohi, stripes, groups, slip_factor)
+
+
 class BallSetFriction:
     """Transient friction of the configured ball set (all balls, each with its own load).
 
@@ -268,7 +293,6 @@ class BallSetFriction:
         self._rolling = cfg.stand.rolling_distance_per_travel
         self._stop_m_s = cfg.model.stop_velocity_m_s
         self._state = np.zeros(5)  # [s, started, run direction, run, previous run]
-        self._s, self._moving1 = np.zeros(1), np.zeros(1)
         self._u, self._lohi = self._fresh_fields()
 
     def _fresh_fields(self) -> tuple[FloatArray, NDArray[np.int64]]:
@@ -314,19 +338,18 @@ class BallSetFriction:
     def step(self, position_m: float, velocity_m_s: float) -> float:
         """Advance the streaming field to ``position_m`` and return the force (N)."""
         moving = 0.0 if abs(velocity_m_s) <= self._stop_m_s else math.copysign(1.0, velocity_m_s)
-        self._s[0] = self._rolling * position_m
-        self._moving1[0] = moving
-        force = _run(
-            self._s,
-            self._moving1,
-            self._state,
-            self._u,
-            self._lohi,
-            self._stripes,
-            self._groups,
-            self._slip_factor,
+        return float(
+            _step(
+                self._state,
+                self._rolling * position_m,
+                moving,
+                self._u,
+                self._lohi,
+                self._stripes,
+                self._groups,
+                self._slip_factor,
+            )
         )
-        return float(force[0])
 
     def virgin_curve(self, x_m: ArrayLike) -> FloatArray:
         """Force while moving in +x versus displacement ``x_m`` (>= 0, increasing) from rest."""
