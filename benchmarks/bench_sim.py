@@ -21,11 +21,9 @@ import math
 import time
 from typing import Any
 
-from sim.closed_loop import run
-from sim.controller import CascadeController, design
 from sim.link import DirectLink
-from sim.plant import LinearMotorAxis, ScaledFriction
 from sim.scenarios import (
+    Loop,
     Physics,
     Scenario,
     build_observer,
@@ -38,32 +36,18 @@ from sim.strategies import STRATEGIES
 
 
 def closed_loop_speed(s: Scenario, repeats: int) -> dict[str, float]:
-    """Real-time factor of :func:`sim.closed_loop.run` alone, per strategy."""
+    """Real-time factor of the closed loop alone, per strategy (best of ``repeats``)."""
     physics = Physics()
-    ref = build_reference(s)
-    truth = ScaledFriction(physics.truth(s.ball), s.plant.ball_set_count)
-    axis = LinearMotorAxis(s.plant, truth, s.controller.servo_period_s)
-    gains = design(s.plant, s.controller)
-    controller = CascadeController(
-        gains, s.plant.current_limit_A, s.controller.acceleration_lead_cycles
-    )
+    loop = Loop.build(s, physics)
     factors = {}
     for name in STRATEGIES:
         observer = build_observer(s, name, physics)
-        best_s = float("inf")
+        best_s = math.inf
         for _ in range(repeats):
             started = time.perf_counter()
-            run(
-                ref,
-                axis,
-                controller,
-                DirectLink(s.scenario.transport_delay_cycles),
-                observer,
-                s.compensator.feed,
-                s.compensator.look_ahead_cycles,
-            )
+            loop.run(observer, DirectLink(s.scenario.transport_delay_cycles))
             best_s = min(best_s, time.perf_counter() - started)
-        factors[name] = ref.duration_s / best_s
+        factors[name] = loop.reference.duration_s / best_s
     return factors
 
 

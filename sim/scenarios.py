@@ -168,6 +168,41 @@ def build_observer(s: Scenario, name: str, physics: Physics) -> FrictionObserver
     )
 
 
+@dataclass(frozen=True)
+class Loop:
+    """The closed loop of a scenario: reference, axis with its truth, controller."""
+
+    scenario: Scenario
+    reference: Reference
+    axis: LinearMotorAxis
+    controller: CascadeController
+
+    @classmethod
+    def build(cls, s: Scenario, physics: Physics) -> Loop:
+        """Reference, truth (scaled to the guide) and controller of ``s``."""
+        truth = ScaledFriction(physics.truth(s.ball), s.plant.ball_set_count)
+        controller = CascadeController(
+            design(s.plant, s.controller),
+            s.plant.current_limit_A,
+            s.controller.acceleration_lead_cycles,
+        )
+        axis = LinearMotorAxis(s.plant, truth, s.controller.servo_period_s)
+        return cls(s, build_reference(s), axis, controller)
+
+    def run(self, observer: FrictionObserver | None, link: FeedforwardLink) -> RunResult:
+        """One run from rest with ``observer`` (None: no compensation) behind ``link``."""
+        comp = self.scenario.compensator
+        return run(
+            self.reference,
+            self.axis,
+            self.controller,
+            link,
+            observer,
+            comp.feed,
+            comp.look_ahead_cycles,
+        )
+
+
 def run_strategies(
     s: Scenario,
     strategies: Iterable[str] = STRATEGIES,
@@ -176,27 +211,13 @@ def run_strategies(
 ) -> dict[str, RunResult]:
     """Run the scenario once per strategy; ``link(delay_cycles)`` makes each link."""
     physics = physics or Physics()
-    ref = build_reference(s)
-    truth = ScaledFriction(physics.truth(s.ball), s.plant.ball_set_count)
-    axis = LinearMotorAxis(s.plant, truth, s.controller.servo_period_s)
-    controller = CascadeController(
-        design(s.plant, s.controller),
-        s.plant.current_limit_A,
-        s.controller.acceleration_lead_cycles,
-    )
+    loop = Loop.build(s, physics)
     results = {}
     for name in strategies:
         if name not in STRATEGIES:
             raise ScenarioError(f"unknown strategy {name!r} (known: {', '.join(STRATEGIES)})")
-        results[name] = run(
-            ref,
-            axis,
-            controller,
-            link(s.scenario.transport_delay_cycles),
-            build_observer(s, name, physics),
-            s.compensator.feed,
-            s.compensator.look_ahead_cycles,
-        )
+        observer = build_observer(s, name, physics)
+        results[name] = loop.run(observer, link(s.scenario.transport_delay_cycles))
     return results
 
 

@@ -115,10 +115,10 @@ def step_stop(
     period_s: float, acceleration_window_s: float, jerk_window_s: float, dwell_s: float
 ) -> Reference:
     """The seed's Fig. 7 profile (0 -> 1 mm in 0.1 mm steps with stops, and back)."""
-    _t, _x, v = seed_fig7_profile(sample_rate_Hz=1.0 / period_s)
-    return from_velocity(
-        np.asarray(v, dtype=float), period_s, acceleration_window_s, jerk_window_s, dwell_s
-    )
+    _t, x, _v = seed_fig7_profile(sample_rate_Hz=1.0 / period_s)
+    # The step lengths are exact in the positions; differencing them keeps the travel.
+    v = np.diff(np.asarray(x, dtype=float), append=x[-1]) / period_s
+    return from_velocity(v, period_s, acceleration_window_s, jerk_window_s, dwell_s)
 
 
 def reversals(reference: Reference) -> NDArray[np.intp]:

@@ -12,8 +12,16 @@ import pytest
 from gms_comp.gms import GmsParams, GmsStream
 from gms_comp.table import Fidelity, GmsTable
 from sim.link import DirectLink
-from sim.scenarios import Physics, Scenario, load_scenario, run_strategies, score
-from sim.trajectories import circle, reversals, sine, stops
+from sim.scenarios import (
+    Loop,
+    Physics,
+    Scenario,
+    build_observer,
+    load_scenario,
+    run_strategies,
+    score,
+)
+from sim.trajectories import circle, reversals, sine, step_stop, stops
 
 SERVO_S = 2.5e-4
 # A stand-in truth of one ball set: four elements, presliding over a few micrometres.
@@ -91,3 +99,23 @@ def test_feedforward_respects_the_compensator_limits() -> None:
     assert np.max(np.abs(ff)) <= 0.05 + 1e-12
     assert np.max(np.abs(np.diff(ff))) <= 50.0 * SERVO_S + 1e-12
     assert math.isclose(np.max(np.abs(ff)), 0.05)  # the limit is reached: it was binding
+
+
+def test_adaptation_recovers_a_misset_friction_level() -> None:
+    s = _scenario(revolutions=1.0)
+    comp = dataclasses.replace(s.compensator, friction_level_scale=0.7, adaptation_rate_per_s=5.0)
+    s = dataclasses.replace(s, compensator=comp)
+    physics = _physics()
+    observer = build_observer(s, "gms", physics)
+    assert observer is not None
+    Loop.build(s, physics).run(observer, DirectLink(1))
+    right = s.plant.ball_set_count  # the table is the truth here: level 1 per ball set
+    assert abs(observer.level - right) < 0.5 * abs(observer.initial_level - right)
+
+
+def test_seed_step_and_stop_profile_keeps_its_steps() -> None:
+    ref = step_stop(SERVO_S, 0.002, 0.001, 0.1)
+    assert len(stops(ref, min_stop_s=0.01)) == 20  # a stop after each of the 20 steps
+    assert len(reversals(ref)) == 1  # up to 1 mm, then back
+    assert np.max(ref.position_m) == pytest.approx(1e-3, rel=1e-3)
+    assert ref.position_m[-1] == pytest.approx(0.0, abs=1e-9)
