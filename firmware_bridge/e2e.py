@@ -4,7 +4,7 @@ The DBC is the single source of truth for the layout, the scaling and the
 E2E data IDs (message attribute ``E2EDataId``). Frames follow the AUTOSAR E2E
 profile 5 layout: CRC-16 in bytes 0..1 over bytes 2..7 and the data ID, an
 8-bit alive counter in byte 2. cantools encodes (``strict=True``, after the
-caller has saturated) and decodes; :mod:`cantools.autosar` computes the CRC.
+caller has saturated) and decodes; the CRC equals :mod:`cantools.autosar`'s.
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ from typing import Any
 
 import can
 import cantools
-from cantools.autosar import apply_profile5_crc, check_profile5_crc
 from cantools.database.can import Message
 
 from gms_comp.errors import BusError
@@ -23,6 +22,40 @@ from gms_comp.errors import BusError
 from .supervisor import RejectCounts, Supervisor, Verdict
 
 COUNTER_MODULUS = 256
+CRC_BYTES = 2
+
+
+def _crc16_table() -> tuple[int, ...]:
+    table = []
+    for byte in range(256):
+        crc = byte << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else crc << 1
+        table.append(crc & 0xFFFF)
+    return tuple(table)
+
+
+_CRC16_TABLE = _crc16_table()
+
+
+def profile5_crc(data: bytes, data_id: int) -> int:
+    """CRC-16/CCITT-FALSE over ``data[2:]`` and the data ID (low, high byte).
+
+    The same value as ``cantools.autosar.compute_profile5_crc`` (the tests check
+    it), table-driven because it runs in the 1 kHz control loop.
+    """
+    crc = 0xFFFF
+    for byte in (*data[CRC_BYTES:], data_id & 0xFF, data_id >> 8):
+        crc = ((crc << 8) & 0xFFFF) ^ _CRC16_TABLE[(crc >> 8) ^ byte]
+    return crc
+
+
+def _with_crc(data: bytes, data_id: int) -> bytes:
+    return profile5_crc(data, data_id).to_bytes(CRC_BYTES, "little") + data[CRC_BYTES:]
+
+
+def _crc_holds(data: bytes, data_id: int) -> bool:
+    return int.from_bytes(data[:CRC_BYTES], "little") == profile5_crc(data, data_id)
 
 
 def default_dbc_path() -> Path:
@@ -75,7 +108,7 @@ class E2eCodec:
             scaling=False,
             strict=True,
         )
-        return bytes(apply_profile5_crc(data, self.command_data_id) or b"")
+        return _with_crc(data, self.command_data_id)
 
     def command_frame(self, counter: int, raw: int) -> can.Message:
         return can.Message(
@@ -86,9 +119,7 @@ class E2eCodec:
 
     def check_command(self, data: bytes) -> tuple[int, int] | None:
         """``(counter, raw current)`` of an intact, in-range command frame, else None."""
-        if len(data) != self.command.length or not check_profile5_crc(
-            data, self.command_data_id
-        ):
+        if len(data) != self.command.length or not _crc_holds(data, self.command_data_id):
             return None
         fields = _decode_raw(self.command, data)
         low, high = self.raw_range
@@ -112,12 +143,12 @@ class E2eCodec:
         )
         return can.Message(
             arbitration_id=self.status.frame_id,
-            data=bytes(apply_profile5_crc(data, self.status_data_id) or b""),
+            data=_with_crc(data, self.status_data_id),
             is_extended_id=False,
         )
 
     def check_status(self, data: bytes) -> DriveStatus | None:
-        if len(data) != self.status.length or not check_profile5_crc(data, self.status_data_id):
+        if len(data) != self.status.length or not _crc_holds(data, self.status_data_id):
             return None
         f = _decode_raw(self.status, data)
         return DriveStatus(

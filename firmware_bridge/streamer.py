@@ -46,7 +46,7 @@ class E2eTx:
         self.self_checked = True
         self.limit_raw = min(self.codec.limit_raw, self.codec.to_raw(cfg.max_current_A))
         self.to_raw = self.codec.to_raw
-        self.last_status: DriveStatus | None = None
+        self._last_status_data: bytes | None = None
 
     def frames(self, cycle: int, raw: int) -> tuple[can.Message, list[can.Message]]:
         return self.codec.command_frame(cycle, raw), []
@@ -57,8 +57,15 @@ class E2eTx:
                 (self.codec.status.length, rate / self.cfg.status_every_cycles)]
 
     def on_reply(self, msg: can.Message) -> None:
+        # kept raw: decoding waits until someone asks, off the control loop's time
         if msg.arbitration_id == self.codec.status.frame_id:
-            self.last_status = self.codec.check_status(bytes(msg.data)) or self.last_status
+            self._last_status_data = bytes(msg.data)
+
+    @property
+    def last_status(self) -> DriveStatus | None:
+        """The drive's latest intact status frame."""
+        data = self._last_status_data
+        return None if data is None else self.codec.check_status(data)
 
 
 class Cia402Tx:

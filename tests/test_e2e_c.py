@@ -18,7 +18,7 @@ from cantools.autosar import compute_profile5_crc
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from firmware_bridge.e2e import E2eCodec, E2eReceiver, default_dbc_path
+from firmware_bridge.e2e import E2eCodec, E2eReceiver, default_dbc_path, profile5_crc
 from firmware_bridge.supervisor import Supervisor, Verdict
 
 C_DIR = Path(__file__).resolve().parents[1] / "firmware_bridge" / "c"
@@ -159,6 +159,9 @@ def test_out_of_range_current_is_corrupt_in_both(lib: ctypes.CDLL) -> None:
 
 @settings(max_examples=100, deadline=None)
 @given(st.binary(min_size=8, max_size=8), st.integers(0, 0xFFFF))
-def test_c_crc_matches_cantools_profile5(lib: ctypes.CDLL, payload: bytes, data_id: int) -> None:
+def test_c_and_python_crc_match_cantools_profile5(
+    lib: ctypes.CDLL, payload: bytes, data_id: int
+) -> None:
     expected = compute_profile5_crc(payload, data_id)
     assert lib.ff_crc16(payload[2:], 6, data_id) == expected
+    assert profile5_crc(payload, data_id) == expected
