@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -14,13 +15,36 @@ from ..config import config_hash
 from ..diagnosis import emps
 from ..diagnosis.run import Diagnosis, diagnose, load_diagnosis_config
 from ..effects import effect_to_dict
+from ..errors import GmsCompError
+from ..fleet import FleetJob, diagnose_fleet, format_table
+from ..scaleout import dask_client
 from ..table import Extension, Fidelity, GmsTable, write_table
 from ..traces import Trace, load_trace, parse_mapping
 
 
 def register(subparsers: Any) -> None:
-    p = subparsers.add_parser("diagnose", help="diagnose a measured trace against the model")
-    p.add_argument("trace", help="canonical CSV, EMPS .mat, or any .csv/.mat with --map")
+    p = subparsers.add_parser(
+        "diagnose",
+        help="diagnose measured traces against the model",
+        description=(
+            "Diagnose one trace, or a fleet of traces in parallel on Dask (a local cluster, "
+            "or an existing one with --scheduler): the named effect, its parameters and "
+            "the gain per trace, and the effects that recur across the fleet."
+        ),
+    )
+    p.add_argument(
+        "traces",
+        nargs="+",
+        metavar="TRACE",
+        help="canonical CSV, EMPS .mat, or any .csv/.mat with --map",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="Dask scheduler for many traces, e.g. tcp://host:8786 (default: local cluster)",
+    )
+    p.add_argument("--workers", type=int, help="local cluster size (default: one per core)")
+    p.add_argument("--serial", action="store_true", help="many traces in this process, no Dask")
     p.add_argument("--config", help="config file ([diagnosis] section)")
     p.add_argument(
         "--force-kind",
@@ -43,6 +67,9 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     mapping = parse_mapping(args.map, "--map") if args.map else None
+    if len(args.traces) > 1 or args.scheduler:
+        return _run_fleet(args, mapping)
+    args.trace = args.traces[0]
     trace = load_trace(args.trace, mapping)
     validation = load_trace(args.validate, mapping) if args.validate else None
     kind = args.force_kind or trace.force_kind or "friction"
@@ -67,6 +94,32 @@ def run(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write(text + "\n")
     return 0
+
+
+def _run_fleet(args: argparse.Namespace, mapping: Mapping[str, str] | None) -> int:
+    """Many traces: one job each, a summary row each, recurring effects across them."""
+    for flag in ("validate", "table"):
+        if getattr(args, flag):
+            raise GmsCompError(f"--{flag} applies to a single trace, not to a fleet")
+    jobs = [
+        FleetJob(
+            trace=str(path),
+            force_kind=args.force_kind,
+            config=args.config,
+            mapping=tuple(sorted(mapping.items())) if mapping else (),
+            report_dir=args.report,
+        )
+        for path in args.traces
+    ]
+    if args.serial:
+        summary = diagnose_fleet(jobs)
+    else:
+        with dask_client(args.scheduler, args.workers) as client:
+            summary = diagnose_fleet(jobs, client=client)
+    if args.json:
+        Path(args.json).write_text(json.dumps(summary, indent=2) + "\n")
+    print(format_table(summary))
+    return 0 if all(row["status"] == "ok" for row in summary["traces"]) else 1
 
 
 def _table(result: Diagnosis, trace_path: str) -> GmsTable:

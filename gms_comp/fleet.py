@@ -1,0 +1,126 @@
+"""Diagnosis of a fleet's traces, one job per trace, serially or on Dask.
+
+Each trace is diagnosed on its own (its held-out blocks come from the same
+trace) by the same :func:`~gms_comp.diagnosis.run.diagnose` as a single trace,
+so the serial and distributed paths give identical rows. A trace that cannot
+be read or diagnosed gives one error row; the rest complete. The summary says
+which effects recur across the fleet: a cause shared by many machines (a
+guide type, a lubricant, a supplier's batch) is worth more than any one trace.
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections import defaultdict
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, cast
+
+from .errors import TraceError
+from .scaleout import JobResult, run_jobs
+
+
+@dataclass(frozen=True)
+class FleetJob:
+    """One trace to diagnose; everything a worker needs, as plain values."""
+
+    trace: str
+    force_kind: str | None = None
+    config: str | None = None
+    mapping: tuple[tuple[str, str], ...] = ()
+    report_dir: str | None = None
+
+
+def diagnose_one(job: FleetJob) -> dict[str, Any]:
+    """Diagnose one trace and return its summary row (no per-sample series)."""
+    from .diagnosis.run import diagnose, load_diagnosis_config
+    from .traces import ForceKind, load_trace
+
+    trace = load_trace(job.trace, dict(job.mapping) if job.mapping else None)
+    kind = job.force_kind or trace.force_kind or "friction"
+    if kind not in ("friction", "drive"):
+        raise TraceError(f"{job.trace}: force kind must be friction or drive, got {kind!r}")
+    result = diagnose(trace, cast(ForceKind, kind), None, load_diagnosis_config(job.config))
+    doc = result.to_json()
+    row: dict[str, Any] = {
+        "trace": job.trace,
+        "status": "ok",
+        "force_kind": kind,
+        "effect": doc["effect"],
+        "parameters": doc["parameters"],
+        "effects": [e["effect"] for e in doc["effects"]],
+        "baseline_rms_N": doc["baseline_rms_N"],
+        "extended_rms_N": doc["extended_rms_N"],
+        "gain": doc["gain"],
+    }
+    if job.report_dir is not None:
+        from .diagnosis.report import write_report
+
+        folder = Path(job.report_dir) / Path(job.trace).stem
+        folder.mkdir(parents=True, exist_ok=True)
+        row["report"] = [str(p) for p in write_report(result, folder)]
+    return row
+
+
+def diagnose_fleet(
+    jobs: Sequence[FleetJob], *, client: Any | None = None, progress: bool | None = None
+) -> dict[str, Any]:
+    """Diagnose every job; rows keep the order of ``jobs``."""
+    rows: list[dict[str, Any]] = [{} for _ in jobs]
+    result: JobResult[dict[str, Any]]
+    for result in run_jobs(diagnose_one, jobs, client=client, desc="diagnose", progress=progress):
+        if result.ok and result.value is not None:
+            rows[result.index] = result.value
+        else:
+            rows[result.index] = {
+                "trace": jobs[result.index].trace,
+                "status": "error",
+                "error": result.error,
+            }
+    return {"traces": rows, "recurring_effects": recurring_effects(rows)}
+
+
+def recurring_effects(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """Effects found in more than one trace, most frequent first, with median parameters."""
+    found: dict[str, list[Mapping[str, Any]]] = defaultdict(list)
+    for row in rows:
+        if row.get("status") == "ok" and row["effect"] not in ("none", "unknown"):
+            found[row["effect"]].append(row)
+    recurring = []
+    for effect, hits in found.items():
+        if len(hits) < 2:
+            continue
+        names = set.intersection(*(set(h["parameters"]) for h in hits))
+        recurring.append(
+            {
+                "effect": effect,
+                "count": len(hits),
+                "share": len(hits) / len(rows),
+                "traces": [h["trace"] for h in hits],
+                "median_parameters": {
+                    n: statistics.median(float(h["parameters"][n]) for h in hits)
+                    for n in sorted(names)
+                },
+                "median_gain": statistics.median(float(h["gain"]) for h in hits),
+            }
+        )
+    return sorted(recurring, key=lambda r: (-r["count"], r["effect"]))
+
+
+def format_table(summary: Mapping[str, Any]) -> str:
+    """The fleet summary as a plain-text table for the terminal."""
+    lines = [f"{'trace':40s} {'effect':20s} {'gain':>7s}  parameters"]
+    for row in summary["traces"]:
+        name = Path(row["trace"]).name[:40]
+        if row["status"] != "ok":
+            lines.append(f"{name:40s} {'ERROR':20s} {'':>7s}  {row['error']}")
+            continue
+        params = ", ".join(f"{k}={v:.4g}" for k, v in row["parameters"].items())
+        lines.append(f"{name:40s} {row['effect']:20s} {row['gain']:7.1%}  {params}")
+    for rec in summary["recurring_effects"]:
+        lines.append(
+            f"recurring: {rec['effect']} in {rec['count']} traces ({rec['share']:.0%}), "
+            f"median gain {rec['median_gain']:.1%}"
+        )
+    return "\n".join(lines)
