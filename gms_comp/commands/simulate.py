@@ -78,14 +78,30 @@ def run(args: argparse.Namespace) -> int:
             "via_can": bool(args.via_can),
         },
         "strategies": scores,
+        "gms_peak_reversal_reduction": _reductions(scores),
         "realtime_factor": simulated_s / elapsed_s,
     }
     print(_table(scores))
+    print(
+        f"simulated {simulated_s:.1f} s in {elapsed_s:.1f} s "
+        f"({report['realtime_factor']:.0f}x real time, set-up included)"
+    )
     if args.json:
         args.json.write_text(json.dumps(report, indent=2) + "\n")
     if args.plot:
         _plot(results, s, args.plot)
     return 0
+
+
+def _reductions(scores: dict[str, dict[str, float | None]]) -> dict[str, float | None]:
+    """How many times smaller the GMS peak reversal error is than each other strategy's."""
+    gms = scores.get("gms", {}).get("peak_reversal_error_m")
+    out: dict[str, float | None] = {}
+    for name, sc in scores.items():
+        other = sc["peak_reversal_error_m"]
+        if name != "gms":
+            out[f"vs_{name}"] = other / gms if other is not None and gms else None
+    return out
 
 
 def _table(scores: dict[str, dict[str, float | None]]) -> str:
