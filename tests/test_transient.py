@@ -176,7 +176,7 @@ def test_result_independent_of_sampling(friction: BallSetFriction) -> None:
     assert coarse == pytest.approx(fine, rel=1e-9)
 
 
-def test_mindlin_reading_has_longer_presliding(cfg: BallConfig) -> None:
+def test_mindlin_reading_has_shorter_presliding(cfg: BallConfig) -> None:
     # k_q(mindlin) > k_q(seed) here, so the field saturates over a shorter travel.
     physical = dataclasses.replace(
         cfg, model=dataclasses.replace(cfg.model, tangential_stiffness="mindlin")
