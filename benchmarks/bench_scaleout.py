@@ -1,0 +1,140 @@
+"""Scale-out on a local Dask cluster, and a paper estimate for a catalogue and a fleet.
+
+1. The same 16-point sweep (4 preloads x 4 friction coefficients, N = 16
+   elements) serially and on a 2-worker local cluster; both must give the same
+   tables.
+2. Fleet diagnosis of ``--traces`` generated traces (100 000 samples each by
+   default, like a day's identification run), serially and on the cluster.
+
+The cluster is started and warmed up (numba kernels compiled in each worker)
+before the timed runs, as on a cluster that serves many jobs. Prints JSON,
+including how many workers an overnight (10 h) run of a 10 000-variant
+catalogue and of a 1 000-machine fleet needs.
+
+    python benchmarks/bench_scaleout.py [--points-per-axis 4] [--elements 16] [--traces 4]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gms_comp.config import default_config_path
+from gms_comp.fleet import FleetJob, diagnose_fleet, diagnose_one
+from gms_comp.scaleout import dask_client, run_jobs
+from gms_comp.sweep import load_sweep, run_sweep
+from gms_comp.traces import write_trace
+from sim.tracegen import generate
+
+NIGHT_S = 10 * 3600.0
+
+
+def _sweep_file(folder: Path, per_axis: int, elements: int) -> Path:
+    loads = [20.0 + 20.0 * i for i in range(per_axis)]
+    mus = [0.8e-3 + 0.2e-3 * i for i in range(per_axis)]
+    path = folder / "sweep.toml"
+    path.write_text(
+        f'[sweep]\nbase_config = "{default_config_path()}"\nelements = {elements}\n'
+        f'[sweep.axes]\n"stand.ball_loads_N" = {loads}\n'
+        f'"bearing.friction_coefficient" = {mus}\n'
+    )
+    return path
+
+
+def _fleet_traces(folder: Path, n: int, samples: int) -> list[FleetJob]:
+    """``n`` generated traces of about ``samples`` samples (the sample rate is raised)."""
+    names = ["offset", "viscous", "position_ripple", "none"]
+    base = generate("none", seed=0).trace.time_s.size  # at 1 kHz
+    rate_Hz = 1000.0 * samples / base
+    jobs = []
+    for i in range(n):
+        path = folder / f"trace_{i:03d}.csv"
+        write_trace(path, generate(names[i % len(names)], seed=i, sample_rate_Hz=rate_Hz).trace)
+        jobs.append(FleetJob(str(path)))
+    return jobs
+
+
+def _warm(_: int) -> int:
+    from gms_comp.config import load_ball_config
+    from gms_comp.reduction import reduce_to_gms
+
+    reduce_to_gms(load_ball_config(), 4)
+    return 0
+
+
+def _estimate(jobs: int, seconds_per_job: float) -> dict[str, float]:
+    cpu_s = jobs * seconds_per_job
+    return {
+        "cpu_hours": round(cpu_s / 3600, 2),
+        "workers_for_overnight_10h": int(np.ceil(cpu_s / NIGHT_S)),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--points-per-axis", type=int, default=4)
+    parser.add_argument("--elements", type=int, default=16)
+    parser.add_argument("--traces", type=int, default=4, help="fleet size for the diagnosis part")
+    parser.add_argument("--samples", type=int, default=100_000, help="samples per fleet trace")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        spec = load_sweep(_sweep_file(root, args.points_per_axis, args.elements))
+        jobs = _fleet_traces(root, args.traces, args.samples)
+        _warm(0)
+        diagnose_one(jobs[0])
+        t0 = time.perf_counter()
+        serial = run_sweep(spec, root / "serial", progress=False)
+        serial_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        fleet_serial = diagnose_fleet(jobs, progress=False)
+        fleet_serial_s = time.perf_counter() - t0
+        with dask_client(n_workers=2) as client:
+            list(run_jobs(_warm, [0, 1], client=client))
+            list(run_jobs(diagnose_one, jobs[:2], client=client))
+            t0 = time.perf_counter()
+            parallel = run_sweep(spec, root / "dask", client=client, progress=False)
+            dask_s = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            fleet_dask = diagnose_fleet(jobs, client=client, progress=False)
+            fleet_dask_s = time.perf_counter() - t0
+    n = len(serial["points"])
+    same = all(
+        a["fidelity"] == b["fidelity"]
+        for a, b in zip(serial["points"], parallel["points"], strict=True)
+    )
+    per_point = serial_s / n
+    per_trace = fleet_serial_s / len(jobs)
+    report: dict[str, Any] = {
+        "sweep": {
+            "points": n,
+            "elements": args.elements,
+            "serial_s": round(serial_s, 3),
+            "dask_2_workers_s": round(dask_s, 3),
+            "speedup": round(serial_s / dask_s, 3),
+            "identical_fidelity": same,
+            "time_per_point_s": round(per_point, 3),
+        },
+        "fleet": {
+            "traces": len(jobs),
+            "samples_per_trace": args.samples,
+            "serial_s": round(fleet_serial_s, 3),
+            "dask_2_workers_s": round(fleet_dask_s, 3),
+            "speedup": round(fleet_serial_s / fleet_dask_s, 3),
+            "identical_rows": fleet_serial == fleet_dask,
+            "time_per_trace_s": round(per_trace, 3),
+        },
+        "estimate_10000_variants": _estimate(10_000, per_point),
+        "estimate_1000_machines": _estimate(1_000, per_trace),
+    }
+    print(json.dumps(report, indent=2))
+
+
+if __name__ == "__main__":
+    main()
