@@ -110,7 +110,7 @@ def calibrate(
     # Bracket: presliding over between a thousandth and the whole of the travel.
     low, high = math.log10(coulomb / travel_m), math.log10(1e3 * coulomb / travel_m)
     best = minimize_scalar(misfit, bounds=(low, high), method="bounded")
-    return Calibration(coulomb, viscous, float(10.0**best.x))
+    return Calibration(float(coulomb), float(viscous), float(10.0**best.x))
 
 
 def baseline_model(name: str, cal: Calibration, velocity_band_m_s: float) -> ForceModel:
