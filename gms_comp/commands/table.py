@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -10,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ..config import load_ball_config
-from ..reduction import reduce_to_gms
+from ..reduction import load_table_config, reduce_to_gms
 from ..table import write_table
 
 
@@ -19,6 +20,16 @@ def _positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
     return value
+
+
+def _loads(text: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be comma-separated numbers, got {text!r}") from None
+    if not all(v > 0 and v < float("inf") for v in values):
+        raise argparse.ArgumentTypeError(f"ball loads must be finite and > 0, got {text!r}")
+    return values
 
 
 def register(subparsers: Any) -> None:
@@ -36,6 +47,12 @@ def register(subparsers: Any) -> None:
     parser.add_argument(
         "--elements", type=_positive_int, help="number of elements N (default: [table] elements)"
     )
+    parser.add_argument(
+        "--family-loads",
+        type=_loads,
+        metavar="N1,N2,...",
+        help="also fit a load family at these ball loads in N (default: [table] family_loads_N)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(func=run)
 
@@ -43,14 +60,20 @@ def register(subparsers: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     cfg = load_ball_config(args.config)
-    table = reduce_to_gms(cfg, args.elements, progress=sys.stderr.isatty())
+    table_cfg = load_table_config(cfg.path)
+    if args.family_loads is not None:
+        table_cfg = dataclasses.replace(table_cfg, family_loads_N=args.family_loads)
+    table = reduce_to_gms(cfg, args.elements, table_cfg, progress=sys.stderr.isatty())
     write_table(args.output, table)
+    family = table.load_family
     summary = {
         "table": str(args.output),
         "config": table.source_config,
         "config_sha256": table.source_sha256,
         "elements": table.n_elements,
+        "slip_level": table.params.slip_level,
         "fidelity": {"rms_rel": table.fidelity.rms_rel, "max_rel": table.fidelity.max_rel},
+        "family_loads_N": [] if family is None else family.normal_load_N.tolist(),
         "seconds": time.perf_counter() - start,
     }
     if args.json:
