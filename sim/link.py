@@ -26,19 +26,35 @@ class FeedforwardLink(Protocol):
 class DirectLink:
     """The identity, delayed by ``delay_cycles`` servo cycles (0 A until then).
 
+    With ``hold_cycles`` > 1 the value is sampled every ``hold_cycles`` cycles
+    (those with ``cycle % hold_cycles == 0``) and held in between, as a drive
+    holds the value of a field-bus frame that comes slower than the servo loop;
+    the delay applies after the hold.
+
     Examples
     --------
     >>> link = DirectLink(delay_cycles=1)
     >>> [link.transfer(k, i) for k, i in enumerate([1.0, 2.0, 3.0])]
     [0.0, 1.0, 2.0]
+    >>> link = DirectLink(hold_cycles=2)
+    >>> [link.transfer(k, i) for k, i in enumerate([1.0, 2.0, 3.0, 4.0])]
+    [1.0, 1.0, 3.0, 3.0]
     """
 
-    def __init__(self, delay_cycles: int = 0) -> None:
+    def __init__(self, delay_cycles: int = 0, hold_cycles: int = 1) -> None:
         if delay_cycles < 0:
             raise ScenarioError(f"transport delay must be >= 0 cycles, got {delay_cycles}")
+        if hold_cycles < 1:
+            raise ScenarioError(f"hold must be >= 1 cycle, got {hold_cycles}")
+        self.delay_cycles = delay_cycles
+        self.hold_cycles = hold_cycles
         self._queue: deque[float] = deque([0.0] * delay_cycles)
+        self._held_A = 0.0
 
     def transfer(self, cycle: int, current_A: float) -> float:
-        """Queue ``current_A`` and return the one sent ``delay_cycles`` ago."""
-        self._queue.append(current_A)
+        """Sample ``current_A`` (on a hold boundary), queue the held value, return the
+        one queued ``delay_cycles`` ago."""
+        if cycle % self.hold_cycles == 0:
+            self._held_A = current_A
+        self._queue.append(self._held_A)
         return self._queue.popleft()

@@ -7,7 +7,6 @@ from pathlib import Path
 
 import pytest
 
-from gms_comp import cli
 from gms_comp.cli import main
 from gms_comp.config import default_config_path
 
@@ -16,12 +15,6 @@ SHORT = """
 revolutions = 0.3
 dwell_s = 0.05
 """
-
-
-@pytest.fixture(autouse=True)
-def _only_simulate(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Build the CLI with this subcommand alone, independent of the others' state."""
-    monkeypatch.setattr(cli, "SUBCOMMANDS", ("simulate",))
 
 
 def _config(tmp_path: Path, extra: str) -> Path:

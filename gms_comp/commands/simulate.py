@@ -1,4 +1,17 @@
-"""``gms-comp simulate``: one scenario of the simulated axis under every strategy."""
+"""``gms-comp simulate``: one scenario of the simulated axis under every strategy.
+
+With ``--via-can`` the feedforward travels over the virtual CAN bus to the
+drive emulator (the ``[can]`` section) instead of the direct path. One frame
+goes per CAN cycle (``can.cycle_period_s``) and the drive holds the applied
+value until the next, so with no faults the run equals the direct path with
+no transport delay of its own (profile ``cia402`` as SYNC master applies the
+frame in the cycle it is sent; with ``sync_master = false`` one CAN cycle
+later), a hold of ``cycle_period_s / servo_period_s`` servo cycles, and the
+current quantized to the frame's step (``cia402``: 1 per mille of
+``rated_current_A``; ``e2e``: the DBC's scale), saturated at
+``can.max_current_A``. ``scenario.transport_delay_cycles`` is not added: the
+bus is the transport. tests/test_sim_via_can.py checks that equivalence.
+"""
 
 from __future__ import annotations
 
@@ -36,7 +49,11 @@ def register(subparsers: Any) -> None:
     parser.add_argument(
         "--via-can",
         action="store_true",
-        help="carry the feedforward over the virtual CAN bus and drive emulator ([can] section)",
+        help=(
+            "carry the feedforward over the virtual CAN bus and drive emulator ([can] "
+            "section); without faults this equals the direct path with the CAN cycle's "
+            "hold and no extra delay, to within the frame's quantization"
+        ),
     )
     parser.set_defaults(func=run)
 
@@ -55,7 +72,9 @@ def _links(s: Scenario, via_can: bool) -> Iterator[Callable[[int], FeedforwardLi
 
         def open_link(_delay_cycles: int) -> FeedforwardLink:
             # The bus brings its own transport delay; the configured one is not added.
-            return stack.enter_context(CanFeedforwardLink(cfg))
+            # One frame per CAN cycle, held by the drive over the servo cycles between.
+            link = CanFeedforwardLink(cfg, servo_period_s=s.controller.servo_period_s)
+            return stack.enter_context(link)
 
         yield open_link
 
