@@ -186,6 +186,9 @@ def fit_elements(
         jac=jacobian,
         bounds=(np.concatenate(lower), np.concatenate(upper)),
         x_scale="jac",
+        # Iterative steps (products with J) instead of an SVD of J per iteration: the
+        # same fit, and no multithreaded LAPACK call that stalls on a busy machine.
+        tr_solver="lsmr",
         max_nfev=max_evaluations,
     )
     k, bp, level = unpack(fit.x)
