@@ -341,17 +341,32 @@ class Inertia(Effect):
 
 
 @dataclass(frozen=True)
-class SensorLowpass(Effect):
-    """The sensor reports a causal Butterworth low-pass of the true force."""
+class DirectionAsymmetry(Effect):
+    """Viscous friction that differs by direction (an extension beyond the spec's
+    catalogue): dF = c_diff |v| / 2, so the slope is c + c_diff/2 moving forward and
+    c - c_diff/2 moving back (EMPS: a fatigued screw, Janot et al. 2019, §4.2)."""
 
-    name: ClassVar[str] = "sensor_lowpass"
-    cutoff_Hz: float
-    order: int
+    name: ClassVar[str] = "direction_asymmetry"
+    c_diff_Ns_per_m: float
+
+    @classmethod
+    def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:
+        return 0.5 * np.abs(ctx.velocity_m_s)[:, None]
+
+    @classmethod
+    def from_coefficients(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Effect:
+        return cls(float(coefficients[0]))
+
+    def coefficients(self) -> FloatArray:
+        return np.array([self.c_diff_Ns_per_m])
+
+
+@dataclass(frozen=True)
+class FilterEffect(Effect):
+    """An effect that is a linear filter of the whole force (applied after the others)."""
 
     def filter(self, sample_time_s: float) -> tuple[FloatArray, FloatArray]:
-        nyquist_Hz = 0.5 / sample_time_s
-        b, a = signal.butter(self.order, min(self.cutoff_Hz / nyquist_Hz, 0.99))
-        return np.asarray(b), np.asarray(a)
+        raise NotImplementedError
 
     def apply(self, ctx: Context, force_N: FloatArray) -> FloatArray:
         return self.filter_columns(force_N, ctx.sample_time_s)
@@ -365,15 +380,44 @@ class SensorLowpass(Effect):
         y, _ = signal.lfilter(b, a, x, axis=0, zi=zi_full)
         return np.asarray(y)
 
+
+@dataclass(frozen=True)
+class SensorLowpass(FilterEffect):
+    """The sensor reports a causal Butterworth low-pass of the true force."""
+
+    name: ClassVar[str] = "sensor_lowpass"
+    cutoff_Hz: float
+    order: int
+
+    def filter(self, sample_time_s: float) -> tuple[FloatArray, FloatArray]:
+        nyquist_Hz = 0.5 / sample_time_s
+        b, a = signal.butter(self.order, min(self.cutoff_Hz / nyquist_Hz, 0.99))
+        return np.asarray(b), np.asarray(a)
+
     def parameters(self) -> dict[str, float]:
         return {"cutoff_Hz": float(self.cutoff_Hz), "order": int(self.order)}
+
+
+@dataclass(frozen=True)
+class DriveLag(FilterEffect):
+    """The axis force follows the drive command with a first-order lag ``lag_s`` (current
+    loop, motor inductance), so the recorded command leads the force: command =
+    force + lag_s dforce/dt (backward difference). An extension beyond the spec's
+    catalogue, for drive-force traces only."""
+
+    name: ClassVar[str] = "drive_lag"
+    lag_s: float
+
+    def filter(self, sample_time_s: float) -> tuple[FloatArray, FloatArray]:
+        r = self.lag_s / sample_time_s
+        return np.array([1.0 + r, -r]), np.array([1.0])
 
 
 CATALOGUE: dict[str, type[Effect]] = {
     cls.name: cls
     for cls in (
         Viscous, Stribeck, DwellTime, PositionRipple, Offset, ReversalTransient, Drift,
-        Inertia, SensorLowpass,
+        Inertia, SensorLowpass, DirectionAsymmetry, DriveLag,
     )
 }  # fmt: skip
 
@@ -412,13 +456,13 @@ def effect_to_dict(effect: Effect) -> dict[str, Any]:
 
 
 def apply_extensions(extensions: Sequence[Effect], ctx: Context) -> FloatArray:
-    """The measured force: the GMS force plus every additive effect, then any sensor filter."""
+    """The measured force: the GMS force plus every additive effect, then any filter."""
     force = ctx.gms_force_N.copy()
     for effect in extensions:
-        if not isinstance(effect, SensorLowpass):
+        if not isinstance(effect, FilterEffect):
             force = effect.apply(ctx, force)
     for effect in extensions:
-        if isinstance(effect, SensorLowpass):
+        if isinstance(effect, FilterEffect):
             force = effect.apply(ctx, force)
     return force
 
@@ -436,7 +480,7 @@ class ExtensionStream:
         self.sample_time_s = sample_time_s
         self.standstill_speed_m_s = standstill_speed_m_s
         self._filters = [
-            e.filter(sample_time_s) for e in self.extensions if isinstance(e, SensorLowpass)
+            e.filter(sample_time_s) for e in self.extensions if isinstance(e, FilterEffect)
         ]
         self.reset()
 
@@ -463,7 +507,7 @@ class ExtensionStream:
         )  # fmt: skip
         force = gms_force_N
         for effect in self.extensions:
-            if not isinstance(effect, SensorLowpass):
+            if not isinstance(effect, FilterEffect):
                 force = float(effect.apply(ctx, np.array([force]))[0])
         if self._zi is None:  # start at rest at the first value, as the batch filter does
             self._zi = [signal.lfilter_zi(b, a) * force for b, a in self._filters]

@@ -21,8 +21,7 @@ from gms_comp.traces import Trace
 
 FloatArray = NDArray[np.float64]
 
-HIDDEN_CHOICES = (*fx.CATALOGUE, "none")
-# The main parameter of each effect, as the diagnosis must recover it.
+# The main parameter of each spec catalogue effect, as the diagnosis must recover it.
 MAIN_PARAMETER = {
     "viscous": "c_Ns_per_m",
     "stribeck": "ratio",
@@ -34,6 +33,7 @@ MAIN_PARAMETER = {
     "inertia": "mass_kg",
     "sensor_lowpass": "cutoff_Hz",
 }
+HIDDEN_CHOICES = (*MAIN_PARAMETER, "none")
 
 TRUTH_GMS = GmsParams(
     stiffness_N_per_m=np.array([4.0, 3.0, 2.5, 2.0, 1.5])

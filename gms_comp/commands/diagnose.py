@@ -150,6 +150,9 @@ def _benchmark_errors(trace: Trace, validation: Trace | None, result: Diagnosis)
             "extended": emps.relative_error_pct(s["force_N"][cut:], s["extended_N"][cut:]),
         },
         "reference_parameters": ref.parameters(),
+        "reference_model_misses": emps.reference_model_misses(
+            result.to_json()["effects"], result.baseline_rms_N
+        ),
     }
     if validation is not None:
         out["validation_relative_error_pct"] = {

@@ -11,7 +11,9 @@ is linear, decimating the prediction equals predicting from decimated regressors
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -21,6 +23,10 @@ from .motion import FloatArray, Kinematics, decimate_matlab, kinematics
 FILTER_CUTOFF_HZ = 100.0  # 5 x the 20 Hz position-loop bandwidth
 DROPPED_SAMPLES = 49  # MATLAB n_border = 50, 1-based
 DECIMATION = 10  # round(0.8 * 500 / 40)
+
+# Catalogue effects the reference model holds: M (inertia), Fv (viscous), offset; its
+# Fc sign(dq) is the baseline's friction level.
+REFERENCE_EFFECTS = frozenset({"inertia", "viscous", "offset"})
 
 SYMMETRIC_NAMES = ("M_kg", "Fv_Ns_per_m", "Fc_N", "offset_N")
 ASYMMETRIC_NAMES = ("M_kg", "Fv_pos_Ns_per_m", "Fc_pos_N", "Fv_neg_Ns_per_m", "Fc_neg_N")
@@ -105,3 +111,26 @@ def _scored(asymmetric: bool, theta: FloatArray, xd: FloatArray, yd: FloatArray)
         error_norm=float(np.linalg.norm(e)),
         condition_number=float(np.linalg.cond(xd)),
     )
+
+
+def reference_model_misses(
+    effects: Sequence[Mapping[str, Any]], baseline_rms_N: float
+) -> list[dict[str, Any]]:
+    """The effects the diagnosis kept beyond the reference's M, Fv, Fc and offset.
+
+    ``effects`` is the diagnosis JSON's ranked list; each miss gets its gain, the drop in
+    held-out RMS it brought when it was added, relative to the baseline's RMS.
+    """
+    misses = []
+    previous = baseline_rms_N
+    for entry in effects:
+        if entry["effect"] not in REFERENCE_EFFECTS:
+            misses.append(
+                {
+                    "effect": entry["effect"],
+                    "parameters": entry["parameters"],
+                    "gain": (previous - entry["heldout_rms_N"]) / baseline_rms_N,
+                }
+            )
+        previous = entry["heldout_rms_N"]
+    return misses

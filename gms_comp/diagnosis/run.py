@@ -5,7 +5,8 @@
 2. Its residual is broken down by motion phase (:mod:`.phases`).
 3. Every catalogue effect is fitted as extra design columns (with its own shape grid).
 4. Forward selection on held-out samples: an effect is kept only if it lowers the
-   held-out RMS by more than ``margin`` (relative), so noise and baseline mismatch do not
+   held-out RMS by more than ``margin`` (relative) with a t statistic over held-out
+   chunks of at least ``significance_t``, so noise and baseline mismatch do not
    produce false effects; the kept effects are ranked in the order they were taken.
 5. The extended model (GMS + effects) is re-simulated as the compensator would run it,
    and its held-out RMS against the baseline's is the gain.
@@ -33,6 +34,10 @@ from .motion import BoolArray, FloatArray, Kinematics, kinematics
 from .phases import phase_masks, residual_by_phase
 
 DRIVE_CUTOFF_HZ = 100.0
+# Joint refits with the GMS force updated (enough for the scaling effects to settle).
+JOINT_REFITS = 3
+# Contiguous chunks of held-out samples for the significance of an improvement.
+SIGNIFICANCE_CHUNKS = 20
 
 
 @dataclass(frozen=True)
@@ -45,8 +50,11 @@ class DiagnosisConfig:
     filter_cutoff_Hz: float = field(default=0.0, metadata=in_range(0.0, 1e9))
     n_elements: int = field(default=8, metadata=in_range(1, 40))
     n_blocks: int = field(default=10, metadata=in_range(3, 1000))
-    margin: float = field(default=0.05, metadata=in_range(0.0, 1.0))
-    max_effects: int = field(default=4, metadata=in_range(1, 9))
+    # An effect is kept if it lowers the held-out RMS by more than ``margin`` (relative)
+    # and the drop is significant: t statistic over held-out chunks >= significance_t.
+    margin: float = field(default=0.02, metadata=in_range(0.0, 1.0))
+    significance_t: float = field(default=2.0, metadata=in_range(0.0, 1e3))
+    max_effects: int = field(default=6, metadata=in_range(1, 9))
     unknown_ratio: float = field(default=2.0, metadata=positive())
     standstill_speed_fraction: float = field(default=0.01, metadata=in_range(0.0, 1.0))
 
@@ -149,7 +157,7 @@ def diagnose(
     presliding = _presliding_length(breakaway, limits)
     ranked, chosen = _select(datas, cfg, drive, baseline_rms, presliding)
 
-    final = _fit_train(datas, _design(datas, chosen))
+    final, ranked = _joint_refit(datas, chosen, ranked, breakaway.size)
     gms = fit.gms_from_limits(breakaway, final[: breakaway.size])
     extensions = [c.effect for c in ranked]
     if drive:
@@ -238,10 +246,7 @@ def _fit_train(datas: Sequence[_Data], columns: Sequence[fit.Columns]) -> FloatA
 
 
 def _held_rms(datas: Sequence[_Data], predictions: Sequence[FloatArray]) -> float:
-    r = np.concatenate(
-        [d.force_N[d.held] - p[d.held] for d, p in zip(datas, predictions, strict=True)]
-    )
-    return fit.rms(r)
+    return fit.rms(_held_residual(datas, predictions))
 
 
 def _presliding_length(breakaway: FloatArray, limits: FloatArray) -> float:
@@ -260,10 +265,19 @@ class _Option:
     effect: type[fx.Effect]
     shape: dict[str, float]
 
+    @property
+    def is_filter(self) -> bool:
+        return issubclass(self.effect, fx.FilterEffect)
+
+    def filter_effect(self) -> fx.FilterEffect:
+        effect = fx.effect_from_dict({"effect": self.effect.name, "parameters": self.shape})
+        assert isinstance(effect, fx.FilterEffect)
+        return effect
+
     def extend(self, d: _Data, cols: fit.Columns) -> fit.Columns:
         assert d.ctx is not None
-        if self.effect is fx.SensorLowpass:
-            filt = fx.SensorLowpass(self.shape["cutoff_Hz"], int(self.shape["order"]))
+        if self.is_filter:
+            filt = self.filter_effect()
             return fit.Columns(filt.filter_columns(cols.values, d.ctx.sample_time_s), cols.lower)
         extra = fit.effect_columns(self.effect, d.ctx, self.shape)
         return fit.Columns(
@@ -282,6 +296,10 @@ def _options(
             for fc in np.geomspace(nyquist / 100, nyquist / 2, 10)
             for order in (1, 2)
         ]
+    if effect is fx.DriveLag:
+        dt = d.ctx.sample_time_s
+        lags = np.geomspace(0.05 * dt, 3 * dt, 12)
+        return [_Option(effect, {"lag_s": float(lag)}) for lag in lags]
     moving = d.ctx.moving > 0
     return [
         _Option(effect, s)
@@ -294,15 +312,33 @@ def _design(datas: Sequence[_Data], chosen: Sequence[_Option]) -> list[fit.Colum
     for d in datas:
         cols = d.base
         # a sensor filter acts on everything else, so it is applied last
-        for opt in sorted(chosen, key=lambda o: o.effect is fx.SensorLowpass):
+        for opt in sorted(chosen, key=lambda o: o.is_filter):
             cols = opt.extend(d, cols)
         out.append(cols)
     return out
 
 
-def _score(datas: Sequence[_Data], columns: Sequence[fit.Columns]) -> tuple[float, FloatArray]:
+def _score(
+    datas: Sequence[_Data], columns: Sequence[fit.Columns]
+) -> tuple[float, FloatArray, FloatArray]:
+    """Held-out RMS, coefficients and held-out residual of a design fitted on training."""
     theta = _fit_train(datas, columns)
-    return _held_rms(datas, [c.values @ theta for c in columns]), theta
+    held = _held_residual(datas, [c.values @ theta for c in columns])
+    return fit.rms(held), theta, held
+
+
+def _held_residual(datas: Sequence[_Data], predictions: Sequence[FloatArray]) -> FloatArray:
+    return np.concatenate(
+        [d.force_N[d.held] - p[d.held] for d, p in zip(datas, predictions, strict=True)]
+    )
+
+
+def _significance(current: FloatArray, new: FloatArray) -> float:
+    """t statistic of the drop in squared held-out residual, over contiguous chunks
+    (residuals are correlated in time, chunks much less so)."""
+    gain = np.array([np.mean(c) for c in np.array_split(current**2 - new**2, SIGNIFICANCE_CHUNKS)])
+    spread = float(np.std(gain, ddof=1)) / np.sqrt(gain.size)
+    return float(np.mean(gain)) / spread if spread > 0 else np.inf
 
 
 def _select(
@@ -312,47 +348,67 @@ def _select(
     baseline_rms: float,
     presliding: float,
 ) -> tuple[list[Candidate], list[_Option]]:
-    pool = [e for e in fx.CATALOGUE.values() if not (drive and e is fx.Inertia)]
+    # a drive force has its mass in the baseline; only a drive command can lead the force
+    pool = [e for e in fx.CATALOGUE.values() if e is not (fx.Inertia if drive else fx.DriveLag)]
     chosen: list[_Option] = []
     ranked: list[Candidate] = []
-    current = baseline_rms
+    current, _, current_held = _score(datas, _design(datas, chosen))
     main = datas[0]
     while pool and len(chosen) < cfg.max_effects:
         cols = _design(datas, chosen)
         theta = _fit_train(datas, cols)
         residual = main.force_N - cols[0].values @ theta
-        best: tuple[float, _Option, FloatArray] | None = None
+        best: tuple[float, _Option, FloatArray, FloatArray] | None = None
         for effect in pool:
             for opt in _options(effect, main, residual, presliding):
-                score, th = _score(datas, _design(datas, [*chosen, opt]))
+                score, th, held = _score(datas, _design(datas, [*chosen, opt]))
                 if best is None or score < best[0]:
-                    best = (score, opt, th)
-        if best is None or best[0] > (1.0 - cfg.margin) * current:
+                    best = (score, opt, th, held)
+        if (
+            best is None
+            or best[0] > (1.0 - cfg.margin) * current
+            or _significance(current_held, best[3]) < cfg.significance_t
+        ):
             break
-        score, opt, th = best
+        score, opt, th, current_held = best
         chosen.append(opt)
         pool.remove(opt.effect)
         current = score
         ranked.append(Candidate(_effect_of(opt, chosen, th, datas), score))
-    # parameters as fitted with every kept effect present
-    if ranked:
-        th = _fit_train(datas, _design(datas, chosen))
-        ranked = [
-            Candidate(_effect_of(o, chosen, th, datas), c.heldout_rms_N)
-            for o, c in zip(chosen, ranked, strict=True)
-        ]
     return ranked, chosen
+
+
+def _joint_refit(
+    datas: Sequence[_Data], chosen: Sequence[_Option], ranked: Sequence[Candidate],
+    n_elements: int,
+) -> tuple[FloatArray, list[Candidate]]:  # fmt: skip
+    """All linear parameters fitted jointly with every kept effect present.
+
+    The effects that scale the friction (stribeck, dwell_time, drift) are columns of the
+    GMS force; it is updated to the jointly fitted GMS and the fit repeated, so that
+    they scale the force the extended model will run with."""
+    theta = _fit_train(datas, _design(datas, chosen))
+    for _ in range(JOINT_REFITS if chosen else 0):
+        for d in datas:
+            assert d.ctx is not None
+            d.ctx = dataclasses.replace(d.ctx, gms_force_N=d.phi @ theta[:n_elements])
+        theta = _fit_train(datas, _design(datas, chosen))
+    refitted = [
+        Candidate(_effect_of(o, chosen, theta, datas), c.heldout_rms_N)
+        for o, c in zip(chosen, ranked, strict=True)
+    ]
+    return theta, refitted
 
 
 def _effect_of(
     opt: _Option, chosen: Sequence[_Option], theta: FloatArray, datas: Sequence[_Data]
 ) -> fx.Effect:
     """The effect with the coefficients ``theta`` holds for it in the design of ``chosen``."""
-    if opt.effect is fx.SensorLowpass:
-        return fx.SensorLowpass(opt.shape["cutoff_Hz"], int(opt.shape["order"]))
+    if opt.is_filter:
+        return opt.filter_effect()
     start = datas[0].base.values.shape[1]
     for other in chosen:
-        if other.effect is fx.SensorLowpass:
+        if other.is_filter:
             continue
         assert datas[0].ctx is not None
         width = fit.effect_columns(other.effect, datas[0].ctx, other.shape).values.shape[1]
