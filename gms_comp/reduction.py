@@ -146,6 +146,8 @@ def fit_elements(
     ``fit_slip_level``, else kept. See the module docstring for the method.
     """
     x, f = curve
+    if not f[-1] > 0.0:
+        raise ValueError(f"the curve must end at a positive force, got {f[-1]!r}")
     target = np.concatenate(
         [f] + [force - template.viscous_Ns_per_m * vel for (_, vel), force in paths]
     )
