@@ -61,7 +61,7 @@ def test_recurring_effects_name_what_the_fleet_shares(serial: dict[str, Any]) ->
 
 
 def test_recurring_effects_ignore_singletons_and_none() -> None:
-    rows = [
+    rows: list[dict[str, Any]] = [
         {"status": "ok", "effect": "viscous", "parameters": {"c": 1.0}, "gain": 0.2, "trace": "a"},
         {"status": "ok", "effect": "none", "parameters": {}, "gain": 0.0, "trace": "b"},
         {"status": "ok", "effect": "none", "parameters": {}, "gain": 0.0, "trace": "c"},
