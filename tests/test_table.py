@@ -182,7 +182,7 @@ def test_table_command_writes_a_readable_table(
     assert main(["table", "-o", str(out), "--elements", "8", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     table = read_table(out)
-    assert summary["elements"] == table.n_elements <= 8
+    assert summary["elements"] == table.n_elements == 8
     assert summary["fidelity"]["rms_rel"] == table.fidelity.rms_rel <= 0.02
     assert summary["fidelity"]["max_rel"] >= summary["fidelity"]["rms_rel"]
     assert main(["table", str(tmp_path / "absent.toml"), "-o", str(out)]) == 2
