@@ -26,10 +26,16 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal, Protocol, runtime_checkable
 
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
 from .config import in_range, non_negative, positive
 from .effects import ExtensionStream, effect_from_dict
 from .gms import GmsStream
 from .table import GmsTable
+
+FloatArray = NDArray[np.float64]
 
 
 @runtime_checkable
@@ -119,6 +125,55 @@ class CompensatorConfig:
         return []
 
 
+# Layout of the observer's state and parameter vectors (the compiled functions').
+_OUTPUT, _LEVEL, _ENABLED, _FORCE, _INITIAL = range(5)
+_KF, _LIMIT, _MAX_STEP, _GAIN, _MIN_V, _LO, _HI = range(7)
+
+
+@numba.njit(cache=True)
+def feedforward_current(
+    state: FloatArray, params: FloatArray, force_N: float
+) -> float:  # pragma: no cover
+    """Saturated, rate-limited current for a model force; a non-finite force disables.
+
+    ``state = [output A, level, enabled, model force N, initial level]``,
+    ``params = [k_f, current limit, max step per cycle, adaptation gain per cycle,
+    min velocity, level bounds lo, hi]``.
+    """
+    if not math.isfinite(force_N):
+        state[_ENABLED] = 0.0
+        force_N = 0.0
+    state[_FORCE] = force_N
+    limit = params[_LIMIT]
+    target = state[_LEVEL] * force_N / params[_KF] if state[_ENABLED] != 0.0 else 0.0
+    target = min(max(target, -limit), limit)
+    step = params[_MAX_STEP]
+    state[_OUTPUT] += min(max(target - state[_OUTPUT], -step), step)
+    return state[_OUTPUT]
+
+
+@numba.njit(cache=True)
+def adapt_level(
+    state: FloatArray,
+    params: FloatArray,
+    drive_current_A: float,
+    inertial_current_A: float,
+    velocity_m_s: float,
+) -> None:  # pragma: no cover
+    """Nudge the level towards the drive's current (see :meth:`FrictionObserver.adapt`)."""
+    if params[_GAIN] == 0.0 or abs(velocity_m_s) < params[_MIN_V]:
+        return
+    model_force = state[_FORCE]
+    if abs(model_force) < 1e-12:
+        return
+    level = state[_LEVEL]
+    ratio = params[_KF] * (drive_current_A - inertial_current_A) / model_force
+    if not 0.5 * level < ratio < 2.0 * level:
+        return  # an outlier (a reversal transient, a collision): no evidence of level
+    lo, hi = params[_LO] * state[_INITIAL], params[_HI] * state[_INITIAL]
+    state[_LEVEL] = min(max(level + params[_GAIN] * (ratio - level), lo), hi)
+
+
 class FrictionObserver:
     """Feedforward current from a streaming friction model.
 
@@ -135,6 +190,10 @@ class FrictionObserver:
         guide of many, or a deliberately mis-set level).
     config
         Limits and adaptation settings.
+
+    The limits and the adaptation are compiled functions on the ``state`` and
+    ``params`` arrays (:func:`feedforward_current`, :func:`adapt_level`), which a
+    compiled control loop can call directly.
 
     Examples
     --------
@@ -155,59 +214,74 @@ class FrictionObserver:
         config: CompensatorConfig | None = None,
     ) -> None:
         self.model = table if isinstance(table, ForceModel) else table_model(table, servo_period_s)
-        self.config = config or CompensatorConfig()
+        cfg = self.config = config or CompensatorConfig()
         self.force_constant_N_per_A = force_constant_N_per_A
         self.servo_period_s = servo_period_s
-        self.initial_level = level
-        self._max_step_A = self.config.rate_limit_A_per_s * servo_period_s
+        lo, hi = cfg.adaptation_level_bounds
+        self.params = np.array(
+            [
+                force_constant_N_per_A,
+                cfg.current_limit_A,
+                cfg.rate_limit_A_per_s * servo_period_s,
+                cfg.adaptation_rate_per_s * servo_period_s,
+                cfg.adaptation_min_velocity_m_s,
+                lo,
+                hi,
+            ]
+        )
+        self.state = np.array([0.0, level, 1.0, 0.0, level])
         self.reset()
+
+    @property
+    def initial_level(self) -> float:
+        """The level set at construction."""
+        return float(self.state[_INITIAL])
+
+    @property
+    def level(self) -> float:
+        """The friction level now (adaptation moves it)."""
+        return float(self.state[_LEVEL])
+
+    @property
+    def enabled(self) -> bool:
+        """False while falling back to no feedforward."""
+        return bool(self.state[_ENABLED])
+
+    @property
+    def model_force_N(self) -> float:
+        """The model force of the last step."""
+        return float(self.state[_FORCE])
+
+    @property
+    def output_A(self) -> float:
+        """The feedforward current of the last step."""
+        return float(self.state[_OUTPUT])
 
     def reset(self) -> None:
         """Virgin model, 0 A output, enabled, level back to its initial value."""
         self.model.reset()
-        self.level = self.initial_level
-        self.enabled = True
-        self.model_force_N = 0.0
-        self.output_A = 0.0
+        self.state[:] = [0.0, self.initial_level, 1.0, 0.0, self.initial_level]
 
     def disable(self) -> None:
         """Fall back to no feedforward; the output ramps down at the rate limit."""
-        self.enabled = False
+        self.state[_ENABLED] = 0.0
 
     def enable(self) -> None:
         """Resume feedforward (bumpless: the model kept tracking)."""
-        self.enabled = True
+        self.state[_ENABLED] = 1.0
 
     def step(self, position_m: float, velocity_m_s: float) -> float:
         """Advance the model one cycle and return the feedforward current in A."""
         force = self.model.step(position_m, velocity_m_s)
-        if not math.isfinite(force):
-            self.disable()
-            force = 0.0
-        self.model_force_N = force
-        limit = self.config.current_limit_A
-        target = self.level * force / self.force_constant_N_per_A if self.enabled else 0.0
-        target = min(max(target, -limit), limit)
-        change = min(max(target - self.output_A, -self._max_step_A), self._max_step_A)
-        self.output_A += change
-        return self.output_A
+        return float(feedforward_current(self.state, self.params, force))
 
     def adapt(self, drive_current_A: float, inertial_current_A: float, velocity_m_s: float) -> None:
         """Nudge the friction level towards what the drive's current says.
 
         ``drive_current_A`` is the motor current, ``inertial_current_A`` the share
-        that accelerates the mass (``m a / k_f`` from the reference).
+        that accelerates the mass (``m a / k_f`` from the reference). Guards:
+        only above the minimum speed, with a model force clear of zero, ratios
+        within a factor 2 of the level, and the level within its bounds times
+        the initial level.
         """
-        cfg = self.config
-        if cfg.adaptation_rate_per_s == 0 or abs(velocity_m_s) < cfg.adaptation_min_velocity_m_s:
-            return
-        model_force = self.model_force_N
-        if abs(model_force) < 1e-12:
-            return
-        observed_N = self.force_constant_N_per_A * (drive_current_A - inertial_current_A)
-        ratio = observed_N / model_force
-        if not 0.5 * self.level < ratio < 2.0 * self.level:
-            return  # an outlier (a reversal transient, a collision): no evidence of level
-        gain = cfg.adaptation_rate_per_s * self.servo_period_s
-        lo, hi = (b * self.initial_level for b in cfg.adaptation_level_bounds)
-        self.level = min(max(self.level + gain * (ratio - self.level), lo), hi)
+        adapt_level(self.state, self.params, drive_current_A, inertial_current_A, velocity_m_s)

@@ -10,19 +10,30 @@ position at the same instant (the tool sees the true position).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from gms_comp.observer import FrictionObserver
+from gms_comp.gms import GmsStream
+from gms_comp.observer import (
+    ForceModel,
+    FrictionObserver,
+    adapt_level,
+    feedforward_current,
+)
 
-from .controller import CascadeController
-from .link import FeedforwardLink
-from .plant import LinearMotorAxis
+from .controller import MEASURED_VELOCITY, CascadeController, controller_step
+from .kernels import ZERO, Pack, gms_model_pack, model_force, model_pack
+from .link import DirectLink, FeedforwardLink, delayed_hold
+from .plant import LinearMotorAxis, axis_cycle
+from .strategies import CoulombViscous, LuGre
 from .trajectories import Reference
 
 FloatArray = NDArray[np.float64]
+Signals = tuple[Any, ...]
+_NO_MODEL = model_pack(ZERO, np.zeros(1))
 
 
 @dataclass(frozen=True)
@@ -41,6 +52,92 @@ class RunResult:
         return self.reference.position_m - self.position_m
 
 
+def compiled_model(model: ForceModel) -> Pack | None:
+    """The :mod:`sim.kernels` pack of a feedforward model, None if it has none
+    (a table with physical extensions, any other Python model)."""
+    if isinstance(model, CoulombViscous | LuGre):
+        return model.pack
+    if isinstance(model, GmsStream):
+        return gms_model_pack(model)
+    return None
+
+
+@numba.njit(cache=True)
+def _observer_input(
+    k: int, ref: Signals, look_ahead: int, feed_measured: bool, measured: float, ctrl: Signals
+) -> tuple[float, float]:  # pragma: no cover
+    """What the compensator sees in cycle ``k``: the reference ahead, or the measurement."""
+    if feed_measured:
+        return measured, ctrl[1][MEASURED_VELOCITY]
+    j = min(k + look_ahead, ref[0].size - 1)
+    return ref[0][j], ref[1][j]
+
+
+@numba.njit(cache=True)
+def _feedforward(
+    k: int, force_N: float, obs: Signals, ref: Signals, axis: Signals, inertial_gain: float
+) -> float:  # pragma: no cover
+    """The observer's current for ``force_N``, then its level adaptation."""
+    state, params = obs
+    wanted = feedforward_current(state, params, force_N)
+    x = axis[0]
+    adapt_level(state, params, x[2], inertial_gain * ref[2][k], ref[1][k])
+    return wanted
+
+
+@numba.njit(cache=True)
+def _actuate(
+    k: int,
+    ff_A: float,
+    measured: float,
+    ref: Signals,
+    lead: int,
+    ctrl: Signals,
+    axis: Signals,
+    out: Signals,
+) -> float:  # pragma: no cover
+    """Controller and axis for cycle ``k`` with the applied feedforward; the new reading."""
+    position, feedforward, command, friction = out
+    x, ad, bd, params, io, noise, truth = axis
+    n = ref[0].size
+    position[k] = x[0]
+    feedforward[k] = ff_A
+    command[k] = controller_step(
+        ctrl[0], ctrl[1], measured, ref[0][k], ref[2][min(k + lead, n - 1)], ff_A
+    )
+    reading = axis_cycle(x, ad, bd, params, io, noise, truth, command[k])
+    friction[k] = io[1]
+    return reading
+
+
+@numba.njit(cache=True)
+def _run_compiled(
+    ref: Signals,
+    model: Pack,
+    has_observer: bool,
+    obs: Signals,
+    look_ahead: int,
+    feed_measured: bool,
+    inertial_gain: float,
+    link: Signals,
+    ctrl: Signals,
+    lead: int,
+    axis: Signals,
+    out: Signals,
+    measured: float,
+) -> None:  # pragma: no cover
+    """The whole run with a compiled model and the direct link."""
+    buffer, delay, hold = link
+    for k in range(ref[0].size):
+        wanted = 0.0
+        if has_observer:
+            x, v = _observer_input(k, ref, look_ahead, feed_measured, measured, ctrl)
+            force = model_force(model, x, v)
+            wanted = _feedforward(k, force, obs, ref, axis, inertial_gain)
+        ff = delayed_hold(buffer, delay, hold, k, wanted)
+        measured = _actuate(k, ff, measured, ref, lead, ctrl, axis, out)
+
+
 def run(
     reference: Reference,
     axis: LinearMotorAxis,
@@ -50,32 +147,40 @@ def run(
     feed: Literal["reference", "measured"] = "reference",
     look_ahead_cycles: int = 0,
 ) -> RunResult:
-    """Run ``reference`` once from rest; ``observer=None`` means no compensation."""
-    axis.reset()
+    """Run ``reference`` once from rest; ``observer=None`` means no compensation.
+
+    With a :class:`DirectLink` and a compiled model (or none) the whole run is one
+    compiled call; otherwise (a Python link such as the CAN bridge, a model with
+    Python parts) the same compiled steps are called once per cycle from Python.
+    """
+    n = reference.cycles
+    axis.reset(n + 1)
     controller.reset(axis.position_m)
     if observer is not None:
         observer.reset()
-    n = reference.cycles
-    # Python lists: indexing numpy arrays per cycle costs more than the arithmetic.
-    x_ref = reference.position_m.tolist()
-    v_ref = reference.velocity_m_s.tolist()
-    a_ref = reference.acceleration_m_s2.tolist()
+    ref = (reference.position_m, reference.velocity_m_s, reference.acceleration_m_s2)
+    out = tuple(np.zeros(n) for _ in range(4))
+    ctrl = (controller.gains, controller.state)
+    plant = axis.compiled()
+    obs = (observer.state, observer.params) if observer is not None else (np.zeros(5), np.zeros(7))
     inertial_gain = axis.cfg.moving_mass_kg / axis.cfg.force_constant_N_per_A
     lead = controller.acceleration_lead_cycles
-    position, ff, command, friction = ([0.0] * n for _ in range(4))
+    feed_measured = feed == "measured"
+    model = compiled_model(observer.model) if observer is not None else _NO_MODEL
     measured = axis.measure()
-    for k in range(n):
-        position[k] = axis.position_m
-        wanted = 0.0
-        if observer is not None:
-            if feed == "reference":
-                j = min(k + look_ahead_cycles, n - 1)
-                wanted = observer.step(x_ref[j], v_ref[j])
-            else:
-                wanted = observer.step(measured, controller.velocity_m_s)
-            observer.adapt(axis.current_A, inertial_gain * a_ref[k], v_ref[k])
-        ff[k] = link.transfer(k, wanted)
-        command[k] = controller.step(measured, x_ref[k], a_ref[min(k + lead, n - 1)], ff[k])
-        measured = axis.step(command[k])
-        friction[k] = axis.friction_force_N
-    return RunResult(reference, *(np.array(s) for s in (position, ff, command, friction)))
+    if isinstance(link, DirectLink) and model is not None:
+        compiled_link = (link.buffer, link.delay_cycles, link.hold_cycles)
+        _run_compiled(
+            ref, model, observer is not None, obs, look_ahead_cycles, feed_measured,
+            inertial_gain, compiled_link, ctrl, lead, plant, out, measured,
+        )  # fmt: skip
+    else:
+        for k in range(n):
+            wanted = 0.0
+            if observer is not None:
+                x, v = _observer_input(k, ref, look_ahead_cycles, feed_measured, measured, ctrl)
+                force = observer.model.step(x, v)
+                wanted = _feedforward(k, force, obs, ref, plant, inertial_gain)
+            ff = link.transfer(k, wanted)
+            measured = _actuate(k, ff, measured, ref, lead, ctrl, plant, out)
+    return RunResult(reference, *out)

@@ -27,11 +27,22 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import control
+import numba
 import numpy as np
+from numpy.typing import NDArray
 
 from gms_comp.config import in_range, positive
 
 from .plant import PlantConfig
+
+FloatArray = NDArray[np.float64]
+
+# Layout of the compiled controller's gain vector ...
+_KP, _PA, _PB, _PC, _PD, _FA, _FB, _FC, _FD, _ACC, _PERIOD, _LIMIT = range(12)
+# ... and of its state: PI integrator, then the measured and the reference
+# velocity estimators (filter state, last position, velocity each).
+_PI, _MEASURED, _REFERENCE = 0, 1, 4
+MEASURED_VELOCITY = _MEASURED + 2  # where the measured velocity estimate sits
 
 
 @dataclass(frozen=True)
@@ -115,53 +126,83 @@ def design(plant: PlantConfig, cfg: ControllerConfig) -> CascadeGains:
     )
 
 
-class VelocityEstimator:
-    """Backward difference of a position, through the discrete low-pass."""
+@numba.njit(cache=True)
+def _estimate(
+    gains: FloatArray, state: FloatArray, at: int, position_m: float
+) -> float:  # pragma: no cover
+    """Velocity estimator in ``state[at:at + 3] = [filter state, last position, velocity]``:
+    backward difference through the discrete low-pass."""
+    raw = (position_m - state[at + 1]) / gains[_PERIOD]
+    state[at + 1] = position_m
+    velocity = gains[_FC] * state[at] + gains[_FD] * raw
+    state[at] = gains[_FA] * state[at] + gains[_FB] * raw
+    state[at + 2] = velocity
+    return velocity
 
-    def __init__(self, lowpass: DiscreteBlock, period_s: float) -> None:
-        self.lowpass = lowpass
-        self.period_s = period_s
-        self.reset(0.0)
 
-    def reset(self, position_m: float) -> None:
-        """At rest at ``position_m``."""
-        self._state = 0.0
-        self._last_m = position_m
-        self.velocity_m_s = 0.0
-
-    def step(self, position_m: float) -> float:
-        """Take the next position sample; return the filtered velocity."""
-        raw = (position_m - self._last_m) / self.period_s
-        self._last_m = position_m
-        f = self.lowpass
-        self.velocity_m_s = f.c * self._state + f.d * raw
-        self._state = f.a * self._state + f.b * raw
-        return self.velocity_m_s
+@numba.njit(cache=True)
+def controller_step(
+    gains: FloatArray,
+    state: FloatArray,
+    measured_position_m: float,
+    reference_position_m: float,
+    reference_acceleration_m_s2: float,
+    feedforward_current_A: float,
+) -> float:  # pragma: no cover
+    """One cycle of the cascade (:class:`CascadeController`); the clipped current command."""
+    velocity_command = gains[_KP] * (reference_position_m - measured_position_m) + _estimate(
+        gains, state, _REFERENCE, reference_position_m
+    )
+    error = velocity_command - _estimate(gains, state, _MEASURED, measured_position_m)
+    command = (
+        gains[_PC] * state[_PI]
+        + gains[_PD] * error
+        + gains[_ACC] * reference_acceleration_m_s2
+        + feedforward_current_A
+    )
+    limit = gains[_LIMIT]
+    clipped = min(max(command, -limit), limit)
+    if clipped == command or (command > clipped) != (error > 0):
+        state[_PI] = gains[_PA] * state[_PI] + gains[_PB] * error
+    return clipped
 
 
 class CascadeController:
-    """The discrete cascade, one servo cycle per :meth:`step`."""
+    """The discrete cascade, one servo cycle per :meth:`step` (:func:`controller_step`).
+
+    ``gains`` and ``state`` are the arrays the compiled step works on.
+    """
 
     def __init__(
         self, gains: CascadeGains, current_limit_A: float, acceleration_lead_cycles: int = 0
     ) -> None:
-        self.gains = gains
+        self.design = gains
         self.acceleration_lead_cycles = acceleration_lead_cycles
         self.current_limit_A = current_limit_A
-        self._measured = VelocityEstimator(gains.velocity_filter, gains.servo_period_s)
-        self._reference = VelocityEstimator(gains.velocity_filter, gains.servo_period_s)
+        pi, f = gains.velocity_pi, gains.velocity_filter
+        self.gains = np.array(
+            [
+                gains.position_gain_per_s,
+                pi.a, pi.b, pi.c, pi.d,
+                f.a, f.b, f.c, f.d,
+                gains.acceleration_gain_A_s2_per_m,
+                gains.servo_period_s,
+                current_limit_A,
+            ]
+        )  # fmt: skip
+        self.state = np.zeros(7)
         self.reset()
 
     @property
     def velocity_m_s(self) -> float:
         """The estimated velocity of the axis."""
-        return self._measured.velocity_m_s
+        return float(self.state[_MEASURED + 2])
 
     def reset(self, position_m: float = 0.0) -> None:
         """At rest at ``position_m``."""
-        self._pi_state = 0.0
-        self._measured.reset(position_m)
-        self._reference.reset(position_m)
+        self.state[:] = 0.0
+        self.state[_MEASURED + 1] = position_m
+        self.state[_REFERENCE + 1] = position_m
 
     def step(
         self,
@@ -171,20 +212,13 @@ class CascadeController:
         feedforward_current_A: float,
     ) -> float:
         """Return the current command for this cycle (clipped to the current limit)."""
-        g = self.gains
-        velocity_command = g.position_gain_per_s * (
-            reference_position_m - measured_position_m
-        ) + self._reference.step(reference_position_m)
-        error = velocity_command - self._measured.step(measured_position_m)
-        pi = g.velocity_pi
-        command = (
-            pi.c * self._pi_state
-            + pi.d * error
-            + g.acceleration_gain_A_s2_per_m * reference_acceleration_m_s2
-            + feedforward_current_A
+        return float(
+            controller_step(
+                self.gains,
+                self.state,
+                measured_position_m,
+                reference_position_m,
+                reference_acceleration_m_s2,
+                feedforward_current_A,
+            )
         )
-        limit = self.current_limit_A
-        clipped = min(max(command, -limit), limit)
-        if clipped == command or (command > clipped) != (error > 0):
-            self._pi_state = pi.a * self._pi_state + pi.b * error
-        return clipped

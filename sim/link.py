@@ -9,10 +9,15 @@ a (virtual) bus and a drive emulator.
 
 from __future__ import annotations
 
-from collections import deque
 from typing import Protocol
 
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
 from gms_comp.errors import ScenarioError
+
+FloatArray = NDArray[np.float64]
 
 
 class FeedforwardLink(Protocol):
@@ -23,13 +28,30 @@ class FeedforwardLink(Protocol):
         ...
 
 
+@numba.njit(cache=True)
+def delayed_hold(
+    buffer: FloatArray, delay_cycles: int, hold_cycles: int, cycle: int, current_A: float
+) -> float:  # pragma: no cover
+    """The direct path's update: ``buffer = [held value, ring of delay + 1 slots]``.
+
+    Cycles must come in order from 0: slot ``cycle % (delay + 1)`` written now is
+    read back ``delay`` cycles later, before it is overwritten.
+    """
+    if cycle % hold_cycles == 0:
+        buffer[0] = current_A
+    ring = buffer.size - 1
+    buffer[1 + cycle % ring] = buffer[0]
+    return buffer[1 + (cycle - delay_cycles) % ring] if cycle >= delay_cycles else 0.0
+
+
 class DirectLink:
     """The identity, delayed by ``delay_cycles`` servo cycles (0 A until then).
 
     With ``hold_cycles`` > 1 the value is sampled every ``hold_cycles`` cycles
     (those with ``cycle % hold_cycles == 0``) and held in between, as a drive
     holds the value of a field-bus frame that comes slower than the servo loop;
-    the delay applies after the hold.
+    the delay applies after the hold. Cycles must be numbered from 0 in order.
+    The compiled closed loop runs :func:`delayed_hold` on :attr:`buffer` itself.
 
     Examples
     --------
@@ -48,13 +70,11 @@ class DirectLink:
             raise ScenarioError(f"hold must be >= 1 cycle, got {hold_cycles}")
         self.delay_cycles = delay_cycles
         self.hold_cycles = hold_cycles
-        self._queue: deque[float] = deque([0.0] * delay_cycles)
-        self._held_A = 0.0
+        self.buffer = np.zeros(delay_cycles + 2)
 
     def transfer(self, cycle: int, current_A: float) -> float:
-        """Sample ``current_A`` (on a hold boundary), queue the held value, return the
-        one queued ``delay_cycles`` ago."""
-        if cycle % self.hold_cycles == 0:
-            self._held_A = current_A
-        self._queue.append(self._held_A)
-        return self._queue.popleft()
+        """Sample ``current_A`` (on a hold boundary) and return the held value of
+        ``delay_cycles`` ago."""
+        return float(
+            delayed_hold(self.buffer, self.delay_cycles, self.hold_cycles, cycle, current_A)
+        )

@@ -5,7 +5,8 @@ The linear part follows python-control's convention: :func:`dynamics` is
 (plus ``current_rate_A_s`` for a second-order current loop) and input
 ``u = [current_command_A, external_force_N]``. :func:`linear_system` builds the
 same model as a :class:`control.StateSpace`; :class:`LinearMotorAxis` advances it
-by exact zero-order-hold steps and closes it over a friction model, which is
+by exact zero-order-hold steps (the compiled :func:`axis_cycle`, shared by the
+closed loop's kernel) and closes it over a friction model, which is
 evaluated once per sub-step and held over it. The friction is displacement
 driven (bristles, play operators), so holding it over a sub-step is stable.
 
@@ -23,10 +24,16 @@ from dataclasses import dataclass, field
 from typing import Any, Literal, Protocol
 
 import control
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from gms_comp.config import in_range, non_negative, positive
+from gms_comp.errors import ScenarioError
+
+from .kernels import Pack, truth_force, truth_pack, zero_truth
+
+FloatArray = NDArray[np.float64]
 
 
 class Friction(Protocol):
@@ -146,6 +153,80 @@ def linear_system(cfg: PlantConfig) -> control.StateSpace:
     return control.ss(a, b, c, np.zeros((1, 2)))
 
 
+def compiled_truth(friction: Friction, scale: float = 1.0) -> Pack:
+    """The :mod:`sim.kernels` pack of a friction truth (after its reset).
+
+    Raises
+    ------
+    ScenarioError
+        If the truth has no compiled form (the transient ball set, GMS, none,
+        or those scaled by :class:`ScaledFriction`).
+    """
+    if isinstance(friction, ScaledFriction):
+        return compiled_truth(friction.source, scale * friction.count)
+    if isinstance(friction, ZeroFriction):
+        return zero_truth()
+    pack = truth_pack(friction, scale)
+    if pack is None:
+        raise ScenarioError(
+            f"friction truth {type(friction).__name__} has no compiled form "
+            "(use the ball set, a GMS model or none)"
+        )
+    return pack
+
+
+@numba.njit(cache=True)
+def axis_cycle(
+    x: FloatArray,
+    ad: FloatArray,
+    bd: FloatArray,
+    params: FloatArray,
+    io: FloatArray,
+    noise: FloatArray,
+    truth: Pack,
+    current_command_A: float,
+) -> float:  # pragma: no cover
+    """Advance the axis one servo cycle; return the encoder reading at its end.
+
+    ``x`` is the padded state (4), ``ad``/``bd`` the ZOH matrices of one sub-step,
+    ``params = [current limit, sub-steps, noise rms, encoder resolution]``,
+    ``io = [next noise index, last friction force]``. The friction is evaluated
+    at the start of each sub-step and held over it.
+    """
+    limit = params[0]
+    u = min(max(current_command_A, -limit), limit)
+    f = 0.0
+    for _ in range(int(params[1])):
+        f = -truth_force(truth, x[0], x[1])
+        x0, x1, x2, x3 = x[0], x[1], x[2], x[3]
+        for i in range(4):
+            x[i] = (
+                ad[i, 0] * x0
+                + ad[i, 1] * x1
+                + ad[i, 2] * x2
+                + ad[i, 3] * x3
+                + bd[i, 0] * u
+                + bd[i, 1] * f
+            )
+    io[1] = -f
+    return encoder(x, params, io, noise)
+
+
+@numba.njit(cache=True)
+def encoder(
+    x: FloatArray, params: FloatArray, io: FloatArray, noise: FloatArray
+) -> float:  # pragma: no cover
+    """Encoder reading: true position plus the next noise sample, quantized."""
+    reading = x[0]
+    if params[2] > 0.0:
+        k = int(io[0])
+        reading += params[2] * noise[k % noise.size]
+        io[0] = k + 1
+    if params[3] > 0.0:
+        reading = round(reading / params[3]) * params[3]
+    return reading
+
+
 class LinearMotorAxis:
     """The axis advanced one servo cycle at a time, with its friction truth.
 
@@ -154,7 +235,8 @@ class LinearMotorAxis:
     cfg
         Plant parameters.
     friction
-        The friction truth (resisting force, see module docstring).
+        The friction truth (resisting force, see module docstring); one with a
+        compiled form (:func:`compiled_truth`).
     servo_period_s
         Length of one servo cycle; the current command is held over it.
 
@@ -170,69 +252,58 @@ class LinearMotorAxis:
         self.cfg = cfg
         self.friction = friction
         discrete = control.c2d(linear_system(cfg), servo_period_s / cfg.substeps, "zoh")
-        # Padded to four states (a first-order current loop leaves the last at 0) and
-        # held as Python floats: the per-cycle update is then plain float arithmetic,
-        # several times faster than numpy on arrays this small.
+        # Padded to four states (a first-order current loop leaves the last at 0).
         n = state_size(cfg)
-        ad = np.zeros((4, 4))
-        bd = np.zeros((4, 2))
-        ad[:n, :n] = discrete.A
-        bd[:n] = discrete.B
-        self._ad = tuple(tuple(map(float, row)) for row in ad)
-        self._bd = tuple(tuple(map(float, row)) for row in bd)
-        self._noise_block = 4096
+        self.ad = np.zeros((4, 4))
+        self.bd = np.zeros((4, 2))
+        self.ad[:n, :n] = discrete.A
+        self.bd[:n] = discrete.B
+        self.params = np.array(
+            [cfg.current_limit_A, cfg.substeps, cfg.position_noise_m, cfg.encoder_resolution_m]
+        )
+        self.state = np.zeros(4)
+        self.io = np.zeros(2)
         self.reset()
 
-    def reset(self) -> None:
-        """At rest at 0 m, no current, friction virgin, noise re-seeded."""
-        self.state = [0.0] * 4
+    def reset(self, cycles: int = 4096) -> None:
+        """At rest at 0 m, no current, friction virgin, noise re-seeded for ``cycles``
+        readings (then repeated)."""
+        self.state[:] = 0.0
+        self.io[:] = 0.0
         self.friction.reset()
-        self.friction_force_N = 0.0
-        self._rng = np.random.default_rng(self.cfg.noise_seed)
-        self._noise: list[float] = []
+        self.truth = compiled_truth(self.friction)
+        self.noise = np.random.default_rng(self.cfg.noise_seed).standard_normal(max(1, cycles))
 
     @property
     def position_m(self) -> float:
         """True carriage position."""
-        return self.state[0]
+        return float(self.state[0])
 
     @property
     def velocity_m_s(self) -> float:
         """True carriage velocity."""
-        return self.state[1]
+        return float(self.state[1])
 
     @property
     def current_A(self) -> float:
         """Motor current."""
-        return self.state[2]
+        return float(self.state[2])
+
+    @property
+    def friction_force_N(self) -> float:
+        """Resisting friction force over the last sub-step."""
+        return float(self.io[1])
 
     def measure(self) -> float:
         """Encoder reading: true position plus noise, quantized to the resolution."""
-        cfg = self.cfg
-        reading = self.state[0]
-        if cfg.position_noise_m > 0:
-            if not self._noise:
-                self._noise = self._rng.standard_normal(self._noise_block).tolist()
-            reading += cfg.position_noise_m * self._noise.pop()
-        if cfg.encoder_resolution_m > 0:
-            reading = round(reading / cfg.encoder_resolution_m) * cfg.encoder_resolution_m
-        return reading
+        return float(encoder(self.state, self.params, self.io, self.noise))
+
+    def compiled(self) -> tuple[Any, ...]:
+        """The arguments of :func:`axis_cycle` before the command."""
+        return (self.state, self.ad, self.bd, self.params, self.io, self.noise, self.truth)
 
     def step(self, current_command_A: float) -> float:
         """Hold ``current_command_A`` (clipped to the limit) over one cycle; return the
         encoder reading at its end."""
-        limit = self.cfg.current_limit_A
-        u = min(max(current_command_A, -limit), limit)
-        (a0, a1, a2, a3), (b0, b1, b2, b3) = self._ad, self._bd
-        x0, x1, x2, x3 = self.state
-        for _ in range(self.cfg.substeps):
-            f = -self.friction.step(x0, x1)
-            x0, x1, x2, x3 = (
-                a0[0] * x0 + a0[1] * x1 + a0[2] * x2 + a0[3] * x3 + b0[0] * u + b0[1] * f,
-                a1[0] * x0 + a1[1] * x1 + a1[2] * x2 + a1[3] * x3 + b1[0] * u + b1[1] * f,
-                a2[0] * x0 + a2[1] * x1 + a2[2] * x2 + a2[3] * x3 + b2[0] * u + b2[1] * f,
-                a3[0] * x0 + a3[1] * x1 + a3[2] * x2 + a3[3] * x3 + b3[0] * u + b3[1] * f,
-            )
-            self.friction_force_N = -f
-        self.state = [x0, x1, x2, x3]
-        return self.measure()
+        x, ad, bd, params, io, noise, truth = self.compiled()
+        return float(axis_cycle(x, ad, bd, params, io, noise, truth, current_command_A))

@@ -23,6 +23,7 @@ from scipy.optimize import minimize_scalar
 
 from gms_comp.observer import ForceModel
 
+from .kernels import COULOMB_VISCOUS, LUGRE, model_force, model_pack
 from .plant import Friction
 
 STRATEGIES = ("none", "coulomb_viscous", "lugre", "gms")
@@ -36,13 +37,16 @@ class CoulombViscous:
     viscous_Ns_per_m: float
     velocity_band_m_s: float
 
+    def __post_init__(self) -> None:
+        params = [self.coulomb_N, self.viscous_Ns_per_m, self.velocity_band_m_s]
+        self.pack = model_pack(COULOMB_VISCOUS, np.array(params))
+
     def reset(self) -> None:
         """Stateless."""
 
     def step(self, position_m: float, velocity_m_s: float) -> float:
         """Force for the commanded velocity."""
-        ramp = min(max(velocity_m_s / self.velocity_band_m_s, -1.0), 1.0)
-        return self.coulomb_N * ramp + self.viscous_Ns_per_m * velocity_m_s
+        return float(model_force(self.pack, position_m, velocity_m_s))
 
 
 @dataclass
@@ -50,7 +54,7 @@ class LuGre:
     """LuGre bristle model without a Stribeck peak, stepped by displacement.
 
     ``dz/dx = 1 - sigma0 z sgn(dx) / F_c`` is solved exactly over each step, so the
-    update is stable for any step length.
+    update is stable for any step length (:func:`sim.kernels.model_force`).
     """
 
     coulomb_N: float
@@ -58,22 +62,17 @@ class LuGre:
     viscous_Ns_per_m: float
 
     def __post_init__(self) -> None:
+        params = [self.coulomb_N, self.stiffness_N_per_m, self.viscous_Ns_per_m]
+        self.pack = model_pack(LUGRE, np.array(params), np.zeros(2))
         self.reset()
 
     def reset(self) -> None:
         """Undeflected bristles; the next sample sets the reference position."""
-        self._z_m = 0.0
-        self._last_m = math.nan
+        self.pack[2][:] = [0.0, math.nan]
 
     def step(self, position_m: float, velocity_m_s: float) -> float:
         """Advance the bristle to ``position_m`` and return the force."""
-        dx = 0.0 if math.isnan(self._last_m) else position_m - self._last_m
-        self._last_m = position_m
-        if dx != 0.0:
-            z_ss = math.copysign(self.coulomb_N / self.stiffness_N_per_m, dx)
-            decay = math.exp(-self.stiffness_N_per_m * abs(dx) / self.coulomb_N)
-            self._z_m = z_ss + (self._z_m - z_ss) * decay
-        return self.stiffness_N_per_m * self._z_m + self.viscous_Ns_per_m * velocity_m_s
+        return float(model_force(self.pack, position_m, velocity_m_s))
 
 
 @dataclass(frozen=True)

@@ -88,7 +88,7 @@ def test_sign_positive_current_accelerates_forward() -> None:
 def test_energy_is_conserved_without_friction_or_current() -> None:
     cfg = _exact()
     axis = LinearMotorAxis(cfg, ZeroFriction(), SERVO_S)
-    axis.state = [0.0, 0.05, 0.0, 0.0]
+    axis.state[:] = [0.0, 0.05, 0.0, 0.0]
     for _ in range(100):
         axis.step(0.0)
     assert axis.velocity_m_s == pytest.approx(0.05, rel=1e-12)
@@ -98,7 +98,7 @@ def test_energy_is_conserved_without_friction_or_current() -> None:
 def test_encoder_quantizes_to_its_resolution() -> None:
     cfg = PlantConfig(encoder_resolution_m=1e-6, position_noise_m=0.0)
     axis = LinearMotorAxis(cfg, ZeroFriction(), SERVO_S)
-    axis.state = [3.4e-6, 0.0, 0.0, 0.0]
+    axis.state[:] = [3.4e-6, 0.0, 0.0, 0.0]
     assert axis.measure() == pytest.approx(3e-6)
 
 
