@@ -9,18 +9,11 @@ from typing import Any
 import can
 import pytest
 
-from gms_comp import cli
 from gms_comp.cli import main
 from gms_comp.config import default_config_path
 
 KEYS = {"frames_sent", "frames_applied", "frames_rejected", "stale_or_corrupt_applied",
         "late_cycles", "max_lateness_s", "loop_time_p99_s", "bus_load", "max_applied_current_A"}
-
-
-@pytest.fixture(autouse=True)
-def only_stream(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The CLI shell with just this subcommand: other areas' commands may be mid-work."""
-    monkeypatch.setattr(cli, "SUBCOMMANDS", ("stream",))
 
 
 def stream(tmp_path: Path, *args: str) -> tuple[int, dict[str, Any]]:
