@@ -2,7 +2,9 @@
 
 - ``closed_loop``: real-time factor of the closed loop alone (reference, truth,
   table and calibration built beforehand) with the ball-model truth at the
-  servo rate, per strategy, best of ``--repeats``.
+  servo rate, per strategy, best of ``--repeats``. This is the simulator's own
+  run (:func:`sim.closed_loop.run`, one compiled call per run on the direct
+  path), the code the tests and ``gms-comp simulate`` use.
 - ``default``: the default scenario's scores and the GMS ratios of the targets.
 - ``friction_level_misset``: the GMS table mis-set by -20 % / +20 % against the
   correctly calibrated Coulomb+viscous (and with every model mis-set alike).
