@@ -115,10 +115,19 @@ def test_dict_round_trip_and_bad_entries() -> None:
 
 
 def test_catalogue_names_match_spec() -> None:
+    # the spec's catalogue plus two named extensions beyond it (EMPS)
     assert set(fx.CATALOGUE) == {
         "viscous", "stribeck", "dwell_time", "position_ripple", "offset",
         "reversal_transient", "drift", "inertia", "sensor_lowpass",
+        "direction_asymmetry", "drive_lag",
     }  # fmt: skip
+
+
+def test_drive_lag_is_a_first_order_lead() -> None:
+    # command = force + lag dforce/dt: a ramp of slope 2 N/s gains 2 * lag once started
+    t = np.arange(100) * 1e-3
+    out = fx.DriveLag(5e-4).filter_columns(2.0 * t, 1e-3)
+    np.testing.assert_allclose(out[10:], 2.0 * t[10:] + 2.0 * 5e-4, atol=1e-12)
 
 
 ALL = [
