@@ -35,16 +35,18 @@ def _scenario() -> Scenario:
 
 
 def _disturbance_error_bound_m(s: Scenario, current_A: float) -> float:
-    """Peak position error of the cascade under a constant current disturbance.
+    """Peak position error of the cascade under a current disturbance, plus the encoder.
 
     A force step F is taken up by the velocity loop (crossover w_v, K_v = m w_v / k_f)
     within a velocity error of about F / (m w_v), which the position loop (w_p) turns
-    into at most F / (m w_v w_p); a factor 2 covers the PI overshoot.
+    into at most F / (m w_v w_p); a factor 2 covers the PI overshoot. Once the two
+    runs differ at all, a reading may round to the other encoder step: one step,
+    doubled for the same overshoot.
     """
     p, c = s.plant, s.controller
     force_N = current_A * p.force_constant_N_per_A
     wv, wp = (2 * math.pi * f for f in (c.velocity_bandwidth_Hz, c.position_bandwidth_Hz))
-    return 2.0 * force_N / (p.moving_mass_kg * wv * wp)
+    return 2.0 * force_N / (p.moving_mass_kg * wv * wp) + 2.0 * p.encoder_resolution_m
 
 
 @pytest.mark.parametrize(
