@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numba
 import numpy as np
@@ -305,7 +306,10 @@ class GmsStream:
     """Per-sample GMS for a real-time loop, with persistent state.
 
     Each :meth:`step` runs the batch kernel on one-sample buffers allocated once,
-    so the streaming and batch results are identical.
+    so the streaming and batch results are identical. The parameters, state and
+    buffers form one tuple, :attr:`kernel`, that :func:`stream_step` advances in
+    place: another numba kernel (the simulator's compiled loop) steps the same
+    stream through it.
 
     Examples
     --------
@@ -316,31 +320,42 @@ class GmsStream:
 
     def __init__(self, params: GmsParams) -> None:
         self.params = params
-        self._scalars = params.scalars
-        self._position = np.zeros(1)
-        self._velocity = np.zeros(1)
-        self._force = np.zeros(1)
-        self.state = GmsState.virgin(params.n_elements)
+        n = params.n_elements
+        # (k, W, scalars, F_i, slip directions, last position, x, v, force buffers)
+        self.kernel = (
+            params.stiffness_N_per_m,
+            params.limit_N,
+            params.scalars,
+            np.zeros(n),
+            np.zeros(n),
+            np.full(1, math.nan),
+            np.zeros(1),
+            np.zeros(1),
+            np.zeros(1),
+        )
+
+    @property
+    def state(self) -> GmsState:
+        """The current state (its arrays are the stream's own, not copies)."""
+        return GmsState(self.kernel[3], self.kernel[4], float(self.kernel[5][0]))
 
     def reset(self) -> None:
         """Back to the virgin state; the next sample sets the reference position."""
-        self.state = GmsState.virgin(self.params.n_elements)
+        self.kernel[3][:] = 0.0
+        self.kernel[4][:] = 0.0
+        self.kernel[5][0] = math.nan
 
     def step(self, position_m: float, velocity_m_s: float) -> float:
         """Advance one sample and return the friction force in N."""
-        state = self.state
-        self._position[0] = position_m
-        self._velocity[0] = velocity_m_s
-        _run(
-            self.params.stiffness_N_per_m,
-            self.params.limit_N,
-            self._scalars,
-            state.element_force_N,
-            state.slip_direction,
-            state.position_m,
-            self._position,
-            self._velocity,
-            self._force,
-        )
-        state.position_m = position_m
-        return float(self._force[0])
+        return float(stream_step(self.kernel, position_m, velocity_m_s))
+
+
+@numba.njit(cache=True)
+def stream_step(kernel: Any, position_m: float, velocity_m_s: float) -> float:  # pragma: no cover
+    """One sample of :func:`_run` on a :attr:`GmsStream.kernel` tuple, in place."""
+    k, w, scalars, forces, slips, last, x1, v1, out = kernel
+    x1[0] = position_m
+    v1[0] = velocity_m_s
+    _run(k, w, scalars, forces, slips, last[0], x1, v1, out)
+    last[0] = position_m
+    return out[0]

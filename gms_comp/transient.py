@@ -26,6 +26,7 @@ share one field.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numba
 import numpy as np
@@ -240,6 +241,21 @@ def _step(
     return _advance(state, s_new, moving, u, lohi, stripes, groups, slip_factor)
 
 
+@numba.njit(cache=True)
+def step_streaming(
+    kernel: Any, position_m: float, velocity_m_s: float
+) -> float:  # pragma: no cover
+    """One streaming step of a :attr:`BallSetFriction.streaming_kernel`, in place.
+
+    The carriage's velocity only decides moving (slipping bristles carry
+    C_v f_max) against at rest (they hold f_max).
+    """
+    state, u, lohi, stripes, groups, consts = kernel
+    slip_factor, rolling, stop_m_s = consts[0], consts[1], consts[2]
+    moving = 0.0 if abs(velocity_m_s) <= stop_m_s else math.copysign(1.0, velocity_m_s)
+    return _step(state, rolling * position_m, moving, u, lohi, stripes, groups, slip_factor)
+
+
 class BallSetFriction:
     """Transient friction of the configured ball set (all balls, each with its own load).
 
@@ -294,6 +310,17 @@ class BallSetFriction:
         self._stop_m_s = cfg.model.stop_velocity_m_s
         self._state = np.zeros(5)  # [s, started, run direction, run, previous run]
         self._u, self._lohi = self._fresh_fields()
+        # The streaming arrays as one tuple that :func:`step_streaming` advances in
+        # place; other numba kernels (the simulator's compiled loop) step the same
+        # ball set through it.
+        self.streaming_kernel = (
+            self._state,
+            self._u,
+            self._lohi,
+            self._stripes,
+            self._groups,
+            np.array([self._slip_factor, self._rolling, self._stop_m_s]),
+        )
 
     def _fresh_fields(self) -> tuple[FloatArray, NDArray[np.int64]]:
         g, s, _ = self._stripes.shape
@@ -337,19 +364,7 @@ class BallSetFriction:
 
     def step(self, position_m: float, velocity_m_s: float) -> float:
         """Advance the streaming field to ``position_m`` and return the force (N)."""
-        moving = 0.0 if abs(velocity_m_s) <= self._stop_m_s else math.copysign(1.0, velocity_m_s)
-        return float(
-            _step(
-                self._state,
-                self._rolling * position_m,
-                moving,
-                self._u,
-                self._lohi,
-                self._stripes,
-                self._groups,
-                self._slip_factor,
-            )
-        )
+        return float(step_streaming(self.streaming_kernel, position_m, velocity_m_s))
 
     def virgin_curve(self, x_m: ArrayLike) -> FloatArray:
         """Force while moving in +x versus displacement ``x_m`` (>= 0, increasing) from rest."""

@@ -32,25 +32,7 @@ ZERO, BALL_SET, GMS, COULOMB_VISCOUS, LUGRE = range(5)
 Pack = tuple[Any, ...]
 
 
-def gms_pack(stream: GmsStream) -> Pack:
-    """A GMS stream's arrays, its last position, and one-sample buffers for the kernel."""
-    p = stream.params
-    last = np.array([stream.state.position_m])
-    state = stream.state
-    return (
-        p.stiffness_N_per_m,
-        p.limit_N,
-        p.scalars,
-        state.element_force_N,
-        state.slip_direction,
-        last,
-        np.zeros(1),
-        np.zeros(1),
-        np.zeros(1),
-    )
-
-
-_NO_GMS = gms_pack(GmsStream(gms_kernel.GmsParams(np.ones(1), np.zeros(1))))
+_NO_GMS = GmsStream(gms_kernel.GmsParams(np.ones(1), np.zeros(1))).kernel
 _NO_BALL = (
     np.zeros(5),
     np.zeros((1, 1, 1)),
@@ -65,19 +47,9 @@ _NO_ARRAY = np.zeros(1)
 def truth_pack(friction: object, scale: float = 1.0) -> Pack | None:
     """The pack of a friction truth, or None if it has no compiled form."""
     if isinstance(friction, BallSetFriction):
-        # BallSetFriction's streaming arrays (see its step()): ball state, field, ranges.
-        consts = np.array([friction._slip_factor, friction._rolling, friction._stop_m_s])
-        ball = (
-            friction._state,
-            friction._u,
-            friction._lohi,
-            friction._stripes,
-            friction._groups,
-            consts,
-        )
-        return (BALL_SET, scale, ball, _NO_GMS)
+        return (BALL_SET, scale, friction.streaming_kernel, _NO_GMS)
     if isinstance(friction, GmsStream):
-        return (GMS, scale, _NO_BALL, gms_pack(friction))
+        return (GMS, scale, _NO_BALL, friction.kernel)
     return None
 
 
@@ -93,18 +65,7 @@ def model_pack(kind: int, params: np.ndarray, state: np.ndarray = _NO_ARRAY) -> 
 
 def gms_model_pack(stream: GmsStream) -> Pack:
     """The pack of a GMS feedforward model."""
-    return (GMS, _NO_ARRAY, _NO_ARRAY, gms_pack(stream))
-
-
-@numba.njit(cache=True)
-def gms_step(g: Pack, position_m: float, velocity_m_s: float) -> float:  # pragma: no cover
-    """One sample of :func:`gms_comp.gms._run` on a pack's arrays."""
-    k, w, scalars, forces, slips, last, x1, v1, out = g
-    x1[0] = position_m
-    v1[0] = velocity_m_s
-    gms_kernel._run(k, w, scalars, forces, slips, last[0], x1, v1, out)
-    last[0] = position_m
-    return out[0]
+    return (GMS, _NO_ARRAY, _NO_ARRAY, stream.kernel)
 
 
 @numba.njit(cache=True)
@@ -112,14 +73,9 @@ def truth_force(truth: Pack, position_m: float, velocity_m_s: float) -> float:  
     """Resisting force of a truth pack (``F v >= 0`` in steady sliding)."""
     kind, scale, ball, g = truth
     if kind == BALL_SET:
-        state, u, lohi, stripes, groups, consts = ball
-        slip, rolling, stop = consts[0], consts[1], consts[2]
-        # As BallSetFriction.step: moving decides slip (C_v f_max) against stick (f_max).
-        moving = 0.0 if abs(velocity_m_s) <= stop else math.copysign(1.0, velocity_m_s)
-        f = transient._step(state, rolling * position_m, moving, u, lohi, stripes, groups, slip)
-        return scale * f
+        return scale * transient.step_streaming(ball, position_m, velocity_m_s)
     if kind == GMS:
-        return scale * gms_step(g, position_m, velocity_m_s)
+        return scale * gms_kernel.stream_step(g, position_m, velocity_m_s)
     return 0.0
 
 
@@ -143,5 +99,5 @@ def model_force(model: Pack, position_m: float, velocity_m_s: float) -> float:  
             state[0] = z_ss + (state[0] - z_ss) * math.exp(-p[1] * abs(dx) / p[0])
         return p[1] * state[0] + p[2] * velocity_m_s
     if kind == GMS:
-        return gms_step(g, position_m, velocity_m_s)
+        return gms_kernel.stream_step(g, position_m, velocity_m_s)
     return 0.0
