@@ -159,6 +159,8 @@ class Effect:
 
     name: ClassVar[str]
     SHAPE: ClassVar[tuple[str, ...]] = ()
+    # An effect of the measurement chain, not of the contact: a compensator does not add it.
+    measurement_only: ClassVar[bool] = False
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:
@@ -326,6 +328,8 @@ class Drift(Effect):
 @dataclass(frozen=True)
 class Inertia(Effect):
     name: ClassVar[str] = "inertia"
+    # the acceleration feedforward already supplies the inertial force
+    measurement_only: ClassVar[bool] = True
     mass_kg: float
 
     @classmethod
@@ -386,6 +390,7 @@ class SensorLowpass(FilterEffect):
     """The sensor reports a causal Butterworth low-pass of the true force."""
 
     name: ClassVar[str] = "sensor_lowpass"
+    measurement_only: ClassVar[bool] = True
     cutoff_Hz: float
     order: int
 
@@ -406,6 +411,7 @@ class DriveLag(FilterEffect):
     catalogue, for drive-force traces only."""
 
     name: ClassVar[str] = "drive_lag"
+    measurement_only: ClassVar[bool] = True
     lag_s: float
 
     def filter(self, sample_time_s: float) -> tuple[FloatArray, FloatArray]:

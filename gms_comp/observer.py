@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .config import in_range, non_negative, positive
-from .effects import ExtensionStream, effect_from_dict
+from .effects import Effect, ExtensionStream, effect_from_dict
 from .gms import GmsStream
 from .table import GmsTable
 
@@ -50,9 +50,15 @@ class ForceModel(Protocol):
         ...
 
 
-# Effects of the measurement chain, not of the contact: a compensator must not add them
-# (the acceleration feedforward already supplies the inertial force).
-MEASUREMENT_EFFECTS = frozenset({"sensor_lowpass", "inertia"})
+def physical_extensions(table: GmsTable) -> list[Effect]:
+    """A table's extensions that act on the contact: the measurement chain's (those
+    flagged ``measurement_only``: sensor filter, drive lag, inertia) a compensator must
+    not add."""
+    built = (
+        effect_from_dict({"effect": e.effect, "parameters": e.parameters})
+        for e in table.extensions
+    )
+    return [e for e in built if not e.measurement_only]
 
 
 class ExtendedGms:
@@ -64,12 +70,7 @@ class ExtendedGms:
 
     def __init__(self, table: GmsTable, servo_period_s: float) -> None:
         self.gms = GmsStream(table.params)
-        physical = [
-            effect_from_dict({"effect": e.effect, "parameters": e.parameters})
-            for e in table.extensions
-            if e.effect not in MEASUREMENT_EFFECTS
-        ]
-        self.extensions = ExtensionStream(physical, servo_period_s)
+        self.extensions = ExtensionStream(physical_extensions(table), servo_period_s)
         self.servo_period_s = servo_period_s
         self.reset()
 
@@ -92,7 +93,7 @@ class ExtendedGms:
 
 def table_model(table: GmsTable, servo_period_s: float) -> ForceModel:
     """The streaming model of a table: plain GMS, or GMS with its extensions."""
-    if any(e.effect not in MEASUREMENT_EFFECTS for e in table.extensions):
+    if physical_extensions(table):
         return ExtendedGms(table, servo_period_s)
     return GmsStream(table.params)
 

@@ -158,3 +158,9 @@ def test_streaming_equals_batch(seed: int) -> None:
     stream = fx.ExtensionStream(ALL, 1e-3)
     out = np.array([stream.step(t[i], x[i], v[i], a[i], f[i]) for i in range(n)])
     np.testing.assert_allclose(out, batch, rtol=1e-9, atol=1e-9)
+
+
+def test_measurement_effects_are_flagged() -> None:
+    # the compensator skips exactly the measurement chain (filters and the inertial force)
+    flagged = {name for name, cls in fx.CATALOGUE.items() if cls.measurement_only}
+    assert flagged == {"sensor_lowpass", "drive_lag", "inertia"}
