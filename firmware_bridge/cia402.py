@@ -13,7 +13,11 @@ RPDO means a frame from another cycle crept in; the drive then applies none.
 
 from __future__ import annotations
 
+import math
 import struct
+import threading
+import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +31,7 @@ from .settings import CanConfig, cycles_within
 from .supervisor import RejectCounts, Supervisor, Verdict
 
 TORQUE_OFFSET = 0x60B2
+PRODUCER_HEARTBEAT = 0x1017
 RPDO1_COMM, RPDO1_MAP = 0x1400, 0x1600
 ABORT_CONNECTION_OPTION = 0x6007
 _INT16 = struct.Struct("<h")
@@ -101,11 +106,46 @@ class Cia402Codec:
         return can.Message(arbitration_id=self.sync_cob_id, data=b"", is_extended_id=False)
 
     def heartbeat_frame(self) -> can.Message:
-        return can.Message(
-            arbitration_id=self.heartbeat_cob_id,
-            data=bytes([_HEARTBEAT_OPERATIONAL]),
-            is_extended_id=False,
-        )
+        return heartbeat_frame(self.heartbeat_cob_id)
+
+
+def heartbeat_frame(cob_id: int) -> can.Message:
+    """An NMT heartbeat saying "operational"."""
+    return can.Message(
+        arbitration_id=cob_id, data=bytes([_HEARTBEAT_OPERATIONAL]), is_extended_id=False
+    )
+
+
+class SyncProducer:
+    """The NC as SYNC master: one SYNC per cycle on the wall clock.
+
+    Used when the compensator follows SYNC (``sync_master = false``); in a
+    real installation the NC or another master produces it.
+    """
+
+    def __init__(self, bus: can.BusABC, codec: Cia402Codec, period_s: float) -> None:
+        self.bus = bus
+        self.frame = codec.sync_frame()
+        self.period_s = period_s
+        self.sent = 0
+
+    def send(self) -> None:
+        self.bus.send(self.frame)
+        self.sent += 1
+
+    def run(self, stop: threading.Event, clock: Callable[[], float] = time.perf_counter) -> None:
+        """Send SYNC on a fixed grid until ``stop`` is set (call in a thread or process).
+
+        A late wake-up sends one SYNC and rejoins the grid, as a master's timer would.
+        """
+        next_s = clock()
+        while not stop.is_set():
+            remaining = next_s - clock()
+            if remaining > 0:
+                time.sleep(remaining)
+            self.send()
+            missed = max(0, math.floor((clock() - next_s) / self.period_s))
+            next_s += (1 + missed) * self.period_s
 
 
 def configure_drive(node: canopen.LocalNode, cfg: CanConfig) -> None:
@@ -115,6 +155,7 @@ def configure_drive(node: canopen.LocalNode, cfg: CanConfig) -> None:
     write_object(node, RPDO1_COMM, 5, max(1, round(cfg.rx_timeout_s * 1e3)))
     consumer_ms = max(1, round(1.5 * cfg.heartbeat_period_s * 1e3))
     write_object(node, 0x1016, 1, (cfg.compensator_node_id << 16) | consumer_ms)
+    write_object(node, PRODUCER_HEARTBEAT, None, max(1, round(cfg.heartbeat_period_s * 1e3)))
     write_object(node, 0x6075, None, round(cfg.rated_current_A * 1e3))
 
 
@@ -147,6 +188,8 @@ class Cia402Receiver:
         self.last_heartbeat_s: float | None = None
         self.active_faults: set[int] = set()
         self.emcy_sent: list[int] = []
+        self.heartbeats_sent = 0
+        self._next_heartbeat_s: float | None = None
 
     def on_message(self, msg: can.Message, now_s: float) -> None:
         cob_id = msg.arbitration_id
@@ -192,11 +235,29 @@ class Cia402Receiver:
         elif fresh:
             self.active_faults.discard(EMCY_RPDO_TIMEOUT)
         write_object(self.node, TORQUE_OFFSET, None, out)
+        self._produce_heartbeat(now_s)
         return out
+
+    def _produce_heartbeat(self, now_s: float) -> None:
+        """The drive's own heartbeat, every 0x1017 ms (0 disables it), read each time
+        because the NC may change it by SDO."""
+        period_s = read_object(self.node, PRODUCER_HEARTBEAT) * 1e-3
+        if period_s <= 0:
+            self._next_heartbeat_s = None
+            return
+        if self._next_heartbeat_s is None or now_s >= self._next_heartbeat_s:
+            cob_id = 0x700 + int(self.node.id or 0)
+            self.node.network.send_message(cob_id, bytes([_HEARTBEAT_OPERATIONAL]))
+            self.heartbeats_sent += 1
+            self._next_heartbeat_s = now_s + period_s - 1e-9
 
     def _supervise(self, now_s: float) -> None:
         if self._overdue(self.last_sync_s, self.sync_timeout_s, now_s):
             self._raise_fault(EMCY_SYNC_LOST)
+            # the SYNC these RPDOs waited for did not come in time: stale once it does
+            for _ in self.window:
+                self.counts.add(Verdict.STALE)
+            self.window = []
         else:
             self.active_faults.discard(EMCY_SYNC_LOST)
         if self._overdue(self.last_heartbeat_s, self.heartbeat_timeout_s, now_s):

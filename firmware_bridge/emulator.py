@@ -8,21 +8,39 @@ checked; :class:`~firmware_bridge.supervisor.Supervisor` decides what is applied
 Two ways to run it: :meth:`step` drains the bus and runs one drive cycle at a
 given time (deterministic, used by the simulated closed loop and the tests), or
 :meth:`run` does so on its own clock in a thread, as a separate device would.
+
+As a separate process (a drive on another node of the bus)::
+
+    python -m firmware_bridge.emulator [CONFIG] --interface udp_multicast \
+        --channel ff11::4743:4d53 [--profile e2e] [--nc-sync] [--duration S]
+
+It prints ``ready`` once it listens, runs until ``--duration`` ends or it gets
+SIGTERM/SIGINT, then prints its status as one JSON line. ``--nc-sync`` also
+plays the NC as SYNC master (for a compensator with ``sync_master = false``).
 """
 
 from __future__ import annotations
 
+import argparse
+import json
+import signal
+import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from contextlib import ExitStack
+from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import can
 import canopen
 
-from .cia402 import Cia402Codec, Cia402Receiver, configure_drive, load_drive_od
+from gms_comp.errors import GmsCompError
+
+from .cia402 import Cia402Codec, Cia402Receiver, SyncProducer, configure_drive, load_drive_od
 from .e2e import E2eCodec, E2eReceiver
-from .settings import CanConfig
+from .settings import CanConfig, load_can_config
 from .supervisor import RejectCounts, Supervisor, Verdict
 
 
@@ -153,6 +171,7 @@ class DriveEmulator:
             emcy = [f"0x{code:04X}" for code in self.cia402.emcy_sent]
         counts = self.counts
         return {
+            "profile": self.cfg.profile,
             "state": state,
             "frames_applied": self.frames_applied,
             "frames_rejected": counts.rejected,
@@ -161,3 +180,58 @@ class DriveEmulator:
             "max_applied_current_A": self.max_applied_current_A,
             "emcy": emcy,
         }
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the drive emulator as its own process (see the module docstring)."""
+    from .session import open_bus  # the session imports this module
+
+    args = _parser().parse_args(argv)
+    stop = threading.Event()
+    for signum in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(signum, lambda *_: stop.set())
+    try:
+        cfg = load_can_config(args.config)
+        overrides = {k: v for k in ("profile", "interface", "channel")
+                     if (v := getattr(args, k)) is not None}
+        cfg = replace(cfg, **overrides)
+        with ExitStack() as stack:
+            drive = DriveEmulator(cfg, stack.enter_context(open_bus(cfg)))
+            devices = []
+            if args.nc_sync and drive.cia402 is not None:
+                nc_bus = stack.enter_context(open_bus(cfg))
+                nc = SyncProducer(nc_bus, drive.cia402.codec, cfg.cycle_period_s)
+                devices.append(threading.Thread(target=nc.run, args=(stop, time.time)))
+            print("ready", flush=True)
+            timer = threading.Timer(args.duration, stop.set)
+            for device in (timer, *devices):
+                device.start()
+            drive.run(stop, time.time)
+            timer.cancel()
+            for device in devices:
+                device.join()
+            status = drive.status()
+    except GmsCompError as err:
+        print(f"firmware_bridge.emulator: error: {err}", file=sys.stderr)
+        return 2
+    status["applied_payloads"] = sorted({data.hex() for _, data in drive.applied_log})
+    print(json.dumps(status), flush=True)
+    return 0
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m firmware_bridge.emulator",
+                                description="The drive emulator as a node of a CAN bus.")
+    p.add_argument("config", nargs="?", type=Path, help="config file (default: Table 1)")
+    p.add_argument("--profile", choices=("cia402", "e2e"), help="override [can] profile")
+    p.add_argument("--interface", help="python-can interface")
+    p.add_argument("--channel", help="python-can channel")
+    p.add_argument("--duration", type=float, default=60.0, metavar="S",
+                   help="stop after S seconds at the latest (60)")
+    p.add_argument("--nc-sync", action="store_true",
+                   help="also produce SYNC, as the NC would (cia402)")
+    return p
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -4,7 +4,12 @@
 (one call per control cycle, the emulator stepped in the same thread: the
 simulated closed loop and the tests) or in real time (:func:`run_stream`: the
 control loop on the wall clock, the emulator in its own thread as a separate
-device, deadline statistics).
+device, deadline statistics). In real time the drive may also be outside the
+process (a real drive, or ``python -m firmware_bridge.emulator``).
+
+Who paces the loop: as SYNC master (the default) the compensator's own clock;
+as SYNC follower (cia402, ``sync_master = false``) the NC's SYNC, one RPDO in
+answer to each. With the built-in emulator, a :class:`SyncProducer` plays the NC.
 """
 
 from __future__ import annotations
@@ -22,12 +27,15 @@ import numpy as np
 from gms_comp.errors import BusError
 
 from .busload import check_bus_load
+from .cia402 import SyncProducer
 from .emulator import DriveEmulator
 from .faults import Fault, FaultyBus
 from .settings import CanConfig
-from .streamer import Streamer, count_unsent_applied, make_tx, profile_bus_load
+from .streamer import Cia402Tx, Streamer, count_unsent_applied, make_tx, profile_bus_load
 
 FeedforwardSource = Callable[[float], float]  # time in s -> feedforward current in A
+FIRST_SYNC_WAIT_S = 2.0  # a follower waits this long for the NC's first SYNC
+SYNC_GONE_S = 0.5  # ... and ends the stream when SYNC stops for this long
 
 
 def open_bus(cfg: CanConfig) -> can.BusABC:
@@ -40,21 +48,23 @@ def open_bus(cfg: CanConfig) -> can.BusABC:
 
 
 class Rig:
-    """Streamer (through a fault injector) and drive emulator on one CAN channel."""
+    """Streamer (through a fault injector) and, unless ``builtin_drive`` is false,
+    the drive emulator (and the NC's SYNC, when the compensator follows it) on one
+    CAN channel."""
 
     def __init__(
         self, cfg: CanConfig, faults: Sequence[Fault] = (), seed: int = 0,
-        log_path: str | Path | None = None,
+        log_path: str | Path | None = None, builtin_drive: bool = True,
     ) -> None:
         self.cfg = cfg
         self.tx = make_tx(cfg)
         self.bus_load = profile_bus_load(cfg, self.tx)
         check_bus_load(self.bus_load)
         self._stack = ExitStack()
+        self.emulator: DriveEmulator | None = None
+        self.nc_sync: SyncProducer | None = None
         try:
             comp_bus = self._stack.enter_context(open_bus(cfg))
-            drive_bus = self._stack.enter_context(open_bus(cfg))
-            self.nc_bus = None if cfg.sync_master else self._stack.enter_context(open_bus(cfg))
             if log_path is not None:
                 monitor = self._stack.enter_context(open_bus(cfg))
                 notifier = can.Notifier(monitor, [can.Logger(str(log_path))])
@@ -63,7 +73,11 @@ class Rig:
                 comp_bus, tuple(faults), self.tx.target_ids, self.tx.self_checked, seed
             )
             self.streamer = Streamer(cfg, self.faulty, self.tx)
-            self.emulator = DriveEmulator(cfg, drive_bus)
+            if builtin_drive:
+                self.emulator = DriveEmulator(cfg, self._stack.enter_context(open_bus(cfg)))
+            if builtin_drive and isinstance(self.tx, Cia402Tx) and cfg.follows_sync:
+                nc_bus = self._stack.enter_context(open_bus(cfg))
+                self.nc_sync = SyncProducer(nc_bus, self.tx.codec, cfg.cycle_period_s)
         except BaseException:
             self._stack.close()
             raise
@@ -77,36 +91,65 @@ class Rig:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+    @property
+    def drive(self) -> DriveEmulator:
+        if self.emulator is None:
+            raise BusError("this rig streams to an external drive: no emulator to step")
+        return self.emulator
+
     def send_cycle(self, cycle: int, current_A: float | None, now_s: float | None = None) -> None:
         """The compensator's part of control cycle ``cycle`` (nothing while stalled)."""
         now_s = cycle * self.cfg.cycle_period_s if now_s is None else now_s
         self.faulty.begin_cycle(cycle, now_s)
-        if self.nc_bus is not None:  # the NC is the SYNC master
-            self.nc_bus.send(self.tx.codec.sync_frame())  # type: ignore[attr-defined]
         if not self.faulty.stalled():
             self.streamer.cycle(cycle, current_A, now_s)
 
     def step(self, cycle: int, current_A: float | None) -> float:
         """Stepped mode: one control cycle and one drive cycle; the applied current."""
+        if self.nc_sync is not None:
+            self.nc_sync.send()
         self.send_cycle(cycle, current_A)
-        return self.emulator.step(cycle * self.cfg.cycle_period_s)
+        return self.drive.step(cycle * self.cfg.cycle_period_s)
 
     def report(self) -> dict[str, Any]:
-        """The stream summary (timing keys are added by the real-time runner)."""
-        window_s = (self.cfg.max_frame_age_cycles + 2) * self.cfg.cycle_period_s
+        """The stream summary (timing keys are added by the real-time runner).
+
+        With an external drive, the drive-side figures are null: only the drive knows them.
+        """
+        report: dict[str, Any] = {
+            "profile": self.cfg.profile,
+            "drive": "emulator" if self.emulator is not None else "external",
+            "sync_source": self._sync_source(),
+            "frames_sent": self.streamer.frames_sent,
+            "send_errors": self.streamer.send_errors,
+            "faults_injected": dict(self.faulty.injected),
+            "bus_load": self.bus_load,
+        }
+        if isinstance(self.tx, Cia402Tx):
+            report["drive_heartbeats_received"] = self.tx.drive_heartbeats
+        return {**report, **self._drive_report()}
+
+    def _sync_source(self) -> str | None:
+        if self.cfg.profile != "cia402":
+            return None
+        return "nc" if self.cfg.follows_sync else "compensator"
+
+    def _drive_report(self) -> dict[str, Any]:
+        keys = ("frames_applied", "frames_rejected", "frames_resync", "stale_or_corrupt_applied",
+                "max_applied_current_A", "drive_state", "emcy")
+        if self.emulator is None:
+            return dict.fromkeys(keys)
+        # a follower's RPDO waits for the next SYNC: one cycle more on the way
+        cycles = self.cfg.max_frame_age_cycles + 2 + int(self.cfg.follows_sync)
+        window_s = cycles * self.cfg.cycle_period_s
         status = self.emulator.status()
         return {
-            "profile": self.cfg.profile,
-            "frames_sent": self.streamer.frames_sent,
             "frames_applied": status["frames_applied"],
             "frames_rejected": status["frames_rejected"],
             "frames_resync": status["frames_resync"],
             "stale_or_corrupt_applied": count_unsent_applied(
                 self.streamer.sent_log, self.emulator.applied_log, window_s
             ),
-            "send_errors": self.streamer.send_errors,
-            "faults_injected": dict(self.faulty.injected),
-            "bus_load": self.bus_load,
             "max_applied_current_A": status["max_applied_current_A"],
             "drive_state": status["state"],
             "emcy": status["emcy"],
@@ -121,65 +164,137 @@ def run_stream(
     seed: int = 0,
     log_path: str | Path | None = None,
     clock: Callable[[], float] = time.perf_counter,
+    builtin_drive: bool = True,
 ) -> dict[str, Any]:
-    """Stream ``source`` for ``duration_s`` in real time to the emulator, then ramp down."""
-    if not cfg.sync_master:
-        raise BusError("real-time streaming needs [can] sync_master = true "
-                       "(follower mode runs stepped, through CanFeedforwardLink)")
-    with Rig(cfg, faults, seed, log_path) as rig:
-        t0 = clock() + cfg.cycle_period_s
+    """Stream ``source`` for ``duration_s`` in real time, then ramp down.
 
-        def since_start() -> float:
-            return clock() - t0
-
+    The drive is the built-in emulator (in a thread), or with ``builtin_drive``
+    false whatever drive is on the bus.
+    """
+    with Rig(cfg, faults, seed, log_path, builtin_drive) as rig:
         # the drive and the audit log run on the bus timestamps' clock
         rig.streamer.send_clock = time.time
         stop = threading.Event()
-        drive = threading.Thread(target=rig.emulator.run, args=(stop, time.time), daemon=True)
-        drive.start()
+        devices = [threading.Thread(target=device.run, args=(stop, time.time), daemon=True)
+                   for device in (rig.emulator, rig.nc_sync) if device is not None]
+        for device in devices:
+            device.start()
         try:
-            timing = _control_loop(rig, source, duration_s, since_start)
+            if isinstance(rig.tx, Cia402Tx) and cfg.follows_sync:
+                timing = _follower_loop(rig, rig.tx, source, duration_s, clock)
+            else:
+                timing = _control_loop(rig, source, duration_s, clock)
         finally:
             time.sleep(cfg.fallback_time_s)  # let the drive see the end of the stream
             stop.set()
-            drive.join()
+            for device in devices:
+                device.join()
         return {**rig.report(), **timing}
+
+
+class _LoopStats:
+    """Deadline statistics of the real-time loop."""
+
+    def __init__(self, period_s: float) -> None:
+        self.period_s = period_s
+        self.loop_times: list[float] = []
+        self.late = 0
+        self.skipped = 0
+        self.max_lateness = 0.0
+
+    def record(self, lateness_s: float, loop_time_s: float) -> None:
+        """One cycle that started ``lateness_s`` after its due time."""
+        self.loop_times.append(loop_time_s)
+        self.max_lateness = max(self.max_lateness, lateness_s)
+        self.late += lateness_s + loop_time_s > self.period_s
+
+    def summary(self, cycles: int) -> dict[str, Any]:
+        times = self.loop_times
+        return {
+            "cycles": cycles,
+            "late_cycles": self.late + self.skipped,
+            "max_lateness_s": self.max_lateness,
+            "loop_time_p99_s": float(np.percentile(times, 99)) if times else 0.0,
+            "loop_time_max_s": max(times, default=0.0),
+        }
 
 
 def _control_loop(
     rig: Rig, source: FeedforwardSource, duration_s: float, clock: Callable[[], float]
 ) -> dict[str, Any]:
-    """Cycle ``k`` is due at ``clock() == k * period``."""
+    """SYNC master: cycle ``k`` is due at ``k * period`` after the start, on ``clock``."""
     period = rig.cfg.cycle_period_s
     n_cycles = round(duration_s / period)
-    loop_times: list[float] = []
-    late = skipped = 0
-    max_lateness = 0.0
+    t0 = clock() + period
+
+    def since_start() -> float:
+        return clock() - t0
+
+    stats = _LoopStats(period)
     cycle = 0
     while cycle < n_cycles or rig.streamer.shaper.value_raw != 0:
         scheduled = cycle * period
-        _sleep_until(scheduled, clock)
-        stall_end = rig.faulty.stall_end(clock())
+        _sleep_until(scheduled, since_start)
+        stall_end = rig.faulty.stall_end(since_start())
         if stall_end is not None:  # an injected controller stall blocks the loop
-            _sleep_until(stall_end, clock)
-        start = clock()
+            _sleep_until(stall_end, since_start)
+        start = since_start()
         rig.send_cycle(cycle, source(scheduled) if cycle < n_cycles else None, start)
-        done = clock()
-        loop_times.append(done - start)
-        lateness = start - scheduled
-        max_lateness = max(max_lateness, lateness)
-        late += lateness + loop_times[-1] > period
+        stats.record(start - scheduled, since_start() - start)
         # a late loop does not catch up with a burst: it resumes at the current slot
-        behind = int(clock() / period) - cycle
-        skipped += max(0, behind - 1)
+        behind = int(since_start() / period) - cycle
+        stats.skipped += max(0, behind - 1)
         cycle += max(1, behind)
-    return {
-        "cycles": cycle,
-        "late_cycles": late + skipped,
-        "max_lateness_s": max_lateness,
-        "loop_time_p99_s": float(np.percentile(loop_times, 99)) if loop_times else 0.0,
-        "loop_time_max_s": max(loop_times, default=0.0),
-    }
+    return stats.summary(cycle)
+
+
+def _follower_loop(
+    rig: Rig, tx: Cia402Tx, source: FeedforwardSource, duration_s: float,
+    clock: Callable[[], float],
+) -> dict[str, Any]:
+    """SYNC follower: one RPDO in answer to each SYNC of the NC, applied at the next.
+
+    Cycle ``k`` is the ``k``-th SYNC since the first one; a loop that missed
+    SYNCs answers only the latest (counted late), so no two RPDOs share a window.
+    Lateness is the reaction time to the SYNC, on the bus timestamps' clock.
+    """
+    period = rig.cfg.cycle_period_s
+    n_cycles = round(duration_s / period)
+    stats = _LoopStats(period)
+    seen = tx.syncs_seen
+    cycle = -1
+    wait_s = FIRST_SYNC_WAIT_S
+    sync_lost = False
+    while cycle + 1 < n_cycles or rig.streamer.shaper.value_raw != 0:
+        if not _await_sync(rig, tx, seen, wait_s, clock):
+            sync_lost = True  # the NC stopped: stay silent, the drive falls back
+            break
+        wait_s = SYNC_GONE_S
+        missed = 0 if cycle < 0 else tx.syncs_seen - seen - 1
+        seen = tx.syncs_seen
+        stats.skipped += missed
+        cycle += 1 + missed
+        lateness = time.time() - tx.last_sync_s
+        start = clock()
+        current = source(cycle * period) if cycle < n_cycles else None
+        rig.send_cycle(cycle, current, cycle * period)
+        stats.record(lateness, clock() - start)
+    return {**stats.summary(cycle + 1), "syncs_seen": tx.syncs_seen, "sync_lost": sync_lost}
+
+
+def _await_sync(
+    rig: Rig, tx: Cia402Tx, seen: int, timeout_s: float, clock: Callable[[], float]
+) -> bool:
+    """Handle incoming frames until a SYNC beyond the ``seen`` ones arrives."""
+    deadline = clock() + timeout_s
+    while tx.syncs_seen == seen:
+        remaining = deadline - clock()
+        if remaining <= 0:
+            return False
+        msg = rig.faulty.recv(timeout=remaining)
+        if msg is not None:
+            tx.on_reply(msg)
+    return True
 
 
 def _sleep_until(deadline: float, clock: Callable[[], float]) -> None:

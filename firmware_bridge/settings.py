@@ -31,6 +31,12 @@ class CanConfig:
     declares the link lost; it then ramps the offset to zero over at most
     ``ramp_time_s``, so the feedforward is zero ``rx_timeout_s + ramp_time_s``
     after the last valid frame. The streamer uses the same ramp on stop or fault.
+
+    ``sync_master`` (cia402): the compensator produces SYNC; when false, the NC
+    does and the compensator sends one RPDO in answer to each SYNC, which the
+    drive applies at the next SYNC. ``heartbeat_period_s`` is the period of both
+    heartbeats, the compensator's (consumed by the drive, 0x1016) and the
+    drive's (0x1017).
     """
 
     profile: ProfileName = "cia402"
@@ -58,6 +64,11 @@ class CanConfig:
         if self.drive_node_id == self.compensator_node_id:
             found.append(("compensator_node_id", "must differ from drive_node_id"))
         return found
+
+    @property
+    def follows_sync(self) -> bool:
+        """The compensator sends each RPDO in answer to the NC's SYNC (cia402 only)."""
+        return self.profile == "cia402" and not self.sync_master
 
     @property
     def timeout_cycles(self) -> int:

@@ -21,6 +21,8 @@ from .e2e import DriveStatus, E2eCodec
 from .settings import CanConfig
 from .supervisor import saturate, toward_zero
 
+_BOOTUP = b"\x00"  # NMT boot-up: the same COB-ID as the heartbeat, not one
+
 
 class CompensatorTx(Protocol):
     """What the streamer needs from a profile."""
@@ -78,6 +80,9 @@ class Cia402Tx:
         self.to_raw = self.codec.to_raw
         self.heartbeat_cycles = max(1, round(cfg.heartbeat_period_s / cfg.cycle_period_s))
         self.emcy_received: list[int] = []
+        self.drive_heartbeats = 0
+        self.syncs_seen = 0  # SYNCs on the bus, whoever produced them
+        self.last_sync_s = 0.0  # bus timestamp of the latest
 
     def frames(self, cycle: int, raw: int) -> tuple[can.Message, list[can.Message]]:
         extra = [self.codec.sync_frame()] if self.cfg.sync_master else []
@@ -90,8 +95,14 @@ class Cia402Tx:
         return [(2, rate), (0, rate), (1, 1.0 / self.cfg.heartbeat_period_s)]
 
     def on_reply(self, msg: can.Message) -> None:
-        if msg.arbitration_id == 0x80 + self.cfg.drive_node_id and len(msg.data) >= 2:
+        cob_id = msg.arbitration_id
+        if cob_id == self.codec.sync_cob_id:
+            self.syncs_seen += 1
+            self.last_sync_s = msg.timestamp
+        elif cob_id == 0x80 + self.cfg.drive_node_id and len(msg.data) >= 2:
             self.emcy_received.append(int.from_bytes(msg.data[:2], "little"))
+        elif cob_id == 0x700 + self.cfg.drive_node_id and msg.data[:1] != _BOOTUP:
+            self.drive_heartbeats += 1
 
 
 def make_tx(cfg: CanConfig) -> CompensatorTx:
@@ -137,7 +148,7 @@ class Streamer:
     frames_sent: int = 0
     send_errors: int = 0
     source_faults: int = 0
-    sent_log: list[tuple[float, bytes]] = field(default_factory=list)
+    sent_log: list[tuple[float, float, bytes]] = field(default_factory=list)
     send_clock: Callable[[], float] | None = None  # stamps the log at the send, if given
 
     def __post_init__(self) -> None:
@@ -150,12 +161,14 @@ class Streamer:
             current_A = None
         raw = self.shaper.step(None if current_A is None else self.tx.to_raw(current_A))
         feedforward, extra = self.tx.frames(cycle, raw)
-        # stamped just before the send: no earlier than the bus's arrival timestamp
-        stamp = now_s if self.send_clock is None else self.send_clock()
+        # stamped on both sides of the send: the frame entered the bus in between,
+        # however long the thread waited (GIL, scheduler) around the call
+        before = now_s if self.send_clock is None else self.send_clock()
         try:
             self.bus.send(feedforward)
             self.frames_sent += 1
-            self.sent_log.append((stamp, bytes(feedforward.data)))
+            after = now_s if self.send_clock is None else self.send_clock()
+            self.sent_log.append((before, after, bytes(feedforward.data)))
             for msg in extra:
                 self.bus.send(msg)
         except can.CanError:
@@ -169,20 +182,25 @@ class Streamer:
 
 
 def count_unsent_applied(
-    sent: Sequence[tuple[float, bytes]], applied: Sequence[tuple[float, bytes]], window_s: float
+    sent: Sequence[tuple[float, float, bytes]],
+    applied: Sequence[tuple[float, bytes]],
+    window_s: float,
 ) -> int:
     """Applied frames that are not a payload the streamer sent within ``window_s`` before.
 
-    An independent check of the receiver: whatever it accepted must be exactly
-    what was sent, and recent. Corrupted, stale or replayed frames fail it.
+    ``sent`` holds ``(not_before_s, not_after_s, payload)``: the send call's
+    bounds. An independent check of the receiver: whatever it accepted must be
+    exactly what was sent, and recent. Corrupted, stale or replayed frames fail it.
     """
-    times: dict[bytes, list[float]] = {}
-    for t, data in sent:
-        times.setdefault(data, []).append(t)
+    sends: dict[bytes, tuple[list[float], list[float]]] = {}
+    for before, after, data in sent:
+        starts, ends = sends.setdefault(data, ([], []))
+        starts.append(before)
+        ends.append(after)
     bad = 0
     for t, data in applied:
-        ts = times.get(data, [])
-        i = bisect.bisect_right(ts, t + 1e-9)
-        if i == 0 or t - ts[i - 1] > window_s:
+        starts, ends = sends.get(data, ([], []))
+        i = bisect.bisect_right(starts, t + 1e-9)  # the latest send begun by then
+        if i == 0 or t - ends[i - 1] > window_s:
             bad += 1
     return bad

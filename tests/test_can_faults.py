@@ -128,7 +128,7 @@ def test_stream_falls_silent_when_the_loop_stops() -> None:
     with Rig(cfg) as rig:
         for k in range(5):
             rig.step(k, 0.1)
-        assert rig.emulator.bus.recv(timeout=0.05) is None
+        assert rig.drive.bus.recv(timeout=0.05) is None
 
 
 def test_follower_mode_applies_one_cycle_later() -> None:

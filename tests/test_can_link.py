@@ -51,7 +51,7 @@ def test_links_side_by_side_do_not_hear_each_other() -> None:
             a.transfer(k, 0.2)
             b.transfer(k, -0.2)
         assert a.report()["frames_applied"] == b.report()["frames_applied"] == 20
-        assert a.rig.emulator.applied_current_A == pytest.approx(0.2)
+        assert a.rig.drive.applied_current_A == pytest.approx(0.2)
 
 
 def test_link_with_faults_stays_safe() -> None:

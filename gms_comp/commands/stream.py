@@ -44,6 +44,12 @@ def register(subparsers: Any) -> None:
         help="KIND[:PROBABILITY][@START-END], KIND in drop, delay, duplicate, "
         "reorder, corrupt, stall, bus_error; repeatable",
     )
+    p.add_argument(
+        "--external-drive",
+        action="store_true",
+        help="a drive is already on the bus (a real one, or python -m firmware_bridge.emulator):"
+        " do not start the built-in emulator; drive-side figures are then null",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of the fault injector")
     p.add_argument("--json", type=Path, metavar="OUT", help="write the report as JSON")
     p.add_argument("--log", type=Path, metavar="FILE.blf", help="log all frames (blf, asc, ...)")
@@ -68,15 +74,16 @@ def run(args: argparse.Namespace) -> int:
         return 2
     faults = [parse_fault(spec) for spec in args.fault]
     source, source_name = feedforward_source(config_path, cfg, args.duration)
-    report = run_stream(cfg, source, args.duration, faults, args.seed, args.log)
+    report = run_stream(cfg, source, args.duration, faults, args.seed, args.log,
+                        builtin_drive=not args.external_drive)
     report["source"] = source_name
     text = json.dumps(report, indent=2, sort_keys=True)
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(text + "\n")
     print(text)
-    unsafe = report["stale_or_corrupt_applied"] > 0 or (
-        report["max_applied_current_A"] > cfg.max_current_A + 1e-9
+    unsafe = (report["stale_or_corrupt_applied"] or 0) > 0 or (
+        (report["max_applied_current_A"] or 0.0) > cfg.max_current_A + 1e-9
     )
     return 1 if unsafe else 0
 
