@@ -27,6 +27,7 @@ from canopen.objectdictionary import ObjectDictionary
 
 from gms_comp.errors import BusError
 
+from .resources import packaged_path
 from .settings import CanConfig, cycles_within
 from .supervisor import RejectCounts, Supervisor, Verdict
 
@@ -46,7 +47,7 @@ ABORT_ACTIONS = {0: "no_action", 1: "fault", 2: "disable_voltage", 3: "quick_sto
 
 
 def default_eds_path() -> Path:
-    return Path(__file__).with_name("cia402_drive.eds")
+    return packaged_path("cia402_drive.eds")
 
 
 def load_drive_od(node_id: int, eds_path: str | Path | None = None) -> ObjectDictionary:

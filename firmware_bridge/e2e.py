@@ -19,6 +19,7 @@ from cantools.database.can import Message
 
 from gms_comp.errors import BusError
 
+from .resources import packaged_path
 from .supervisor import RejectCounts, Supervisor, Verdict
 
 COUNTER_MODULUS = 256
@@ -59,7 +60,7 @@ def _crc_holds(data: bytes, data_id: int) -> bool:
 
 
 def default_dbc_path() -> Path:
-    return Path(__file__).with_name("gms_ff.dbc")
+    return packaged_path("gms_ff.dbc")
 
 
 @dataclass(frozen=True)

@@ -117,3 +117,12 @@ def test_can_section_errors_name_file_and_key(tmp_path: Path) -> None:
 def test_default_config_loads_and_fallback_is_timeout_plus_ramp() -> None:
     cfg = load_can_config()
     assert cfg.fallback_time_s == pytest.approx(cfg.rx_timeout_s + cfg.ramp_time_s)
+
+
+def test_packaged_data_files_are_found_through_importlib_resources() -> None:
+    from firmware_bridge.resources import packaged_path
+
+    for name in ("gms_ff.dbc", "cia402_drive.eds", "c/ff_handler.c", "c/ff_handler.h"):
+        assert packaged_path(name).is_file()
+    with pytest.raises(BusError, match="not found"):
+        packaged_path("missing.dbc")

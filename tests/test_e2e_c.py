@@ -11,7 +11,6 @@ import random
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 from cantools.autosar import compute_profile5_crc
@@ -19,9 +18,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware_bridge.e2e import E2eCodec, E2eReceiver, default_dbc_path, profile5_crc
+from firmware_bridge.resources import packaged_path
 from firmware_bridge.supervisor import Supervisor, Verdict
 
-C_DIR = Path(__file__).resolve().parents[1] / "firmware_bridge" / "c"
+C_DIR = packaged_path("c")
 VERDICTS = list(Verdict)
 TIMEOUT, RAMP, MAX_AGE, LIMIT = 3, 4, 1, 20000
 
