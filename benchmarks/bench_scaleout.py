@@ -27,7 +27,7 @@ import numpy as np
 
 from gms_comp.config import default_config_path
 from gms_comp.fleet import FleetJob, diagnose_fleet, diagnose_one
-from gms_comp.scaleout import dask_client, run_jobs
+from gms_comp.scaleout import dask_client
 from gms_comp.sweep import load_sweep, run_sweep
 from gms_comp.traces import write_trace
 from sim.tracegen import generate
@@ -68,11 +68,45 @@ def _warm(_: int) -> int:
     return 0
 
 
-def _estimate(jobs: int, seconds_per_job: float) -> dict[str, float]:
+def _estimate(jobs: int, seconds_per_job: float, tasks_per_s: float) -> dict[str, float]:
+    """CPU time, workers for a 10 h night, and the worker count at which the scheduler
+    (handing out ``tasks_per_s``) rather than the workers limits the throughput."""
     cpu_s = jobs * seconds_per_job
     return {
         "cpu_hours": round(cpu_s / 3600, 2),
         "workers_for_overnight_10h": int(np.ceil(cpu_s / NIGHT_S)),
+        "workers_at_scheduler_limit": int(tasks_per_s * seconds_per_job),
+    }
+
+
+def _noop(i: int) -> int:
+    return i
+
+
+def _scheduler_tasks_per_s(client: Any, n: int = 2000) -> float:
+    """Trivial tasks through the scheduler per second: the rate it can hand out work."""
+    t0 = time.perf_counter()
+    client.gather(client.map(_noop, range(n), pure=False))
+    return n / (time.perf_counter() - t0)
+
+
+def _fleet(jobs: list[FleetJob], client: Any) -> dict[str, Any]:
+    """Fleet diagnosis timed serially and on ``client``."""
+    diagnose_one(jobs[0])
+    client.run(diagnose_one, jobs[0])
+    t0 = time.perf_counter()
+    serial = diagnose_fleet(jobs, progress=False)
+    serial_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    parallel = diagnose_fleet(jobs, client=client, progress=False)
+    dask_s = time.perf_counter() - t0
+    return {
+        "traces": len(jobs),
+        "serial_s": round(serial_s, 3),
+        "dask_2_workers_s": round(dask_s, 3),
+        "speedup": round(serial_s / dask_s, 3),
+        "identical_rows": serial == parallel,
+        "time_per_trace_s": round(serial_s / len(jobs), 3),
     }
 
 
@@ -80,59 +114,46 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--points-per-axis", type=int, default=4)
     parser.add_argument("--elements", type=int, default=16)
-    parser.add_argument("--traces", type=int, default=4, help="fleet size for the diagnosis part")
+    parser.add_argument("--traces", type=int, default=4, help="fleet size (0: skip the fleet)")
     parser.add_argument("--samples", type=int, default=100_000, help="samples per fleet trace")
     args = parser.parse_args()
+    report: dict[str, Any] = {}
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         spec = load_sweep(_sweep_file(root, args.points_per_axis, args.elements))
-        jobs = _fleet_traces(root, args.traces, args.samples)
         _warm(0)
-        diagnose_one(jobs[0])
         t0 = time.perf_counter()
         serial = run_sweep(spec, root / "serial", progress=False)
         serial_s = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        fleet_serial = diagnose_fleet(jobs, progress=False)
-        fleet_serial_s = time.perf_counter() - t0
         with dask_client(n_workers=2) as client:
-            list(run_jobs(_warm, [0, 1], client=client))
-            list(run_jobs(diagnose_one, jobs[:2], client=client))
+            client.run(_warm, 0)  # on every worker: numba caches loaded, imports done
             t0 = time.perf_counter()
             parallel = run_sweep(spec, root / "dask", client=client, progress=False)
             dask_s = time.perf_counter() - t0
-            t0 = time.perf_counter()
-            fleet_dask = diagnose_fleet(jobs, client=client, progress=False)
-            fleet_dask_s = time.perf_counter() - t0
+            if args.traces:
+                report["fleet"] = _fleet(_fleet_traces(root, args.traces, args.samples), client)
+                report["fleet"]["samples_per_trace"] = args.samples
+            tasks_per_s = _scheduler_tasks_per_s(client)
     n = len(serial["points"])
-    same = all(
-        a["fidelity"] == b["fidelity"]
-        for a, b in zip(serial["points"], parallel["points"], strict=True)
-    )
     per_point = serial_s / n
-    per_trace = fleet_serial_s / len(jobs)
-    report: dict[str, Any] = {
-        "sweep": {
-            "points": n,
-            "elements": args.elements,
-            "serial_s": round(serial_s, 3),
-            "dask_2_workers_s": round(dask_s, 3),
-            "speedup": round(serial_s / dask_s, 3),
-            "identical_fidelity": same,
-            "time_per_point_s": round(per_point, 3),
-        },
-        "fleet": {
-            "traces": len(jobs),
-            "samples_per_trace": args.samples,
-            "serial_s": round(fleet_serial_s, 3),
-            "dask_2_workers_s": round(fleet_dask_s, 3),
-            "speedup": round(fleet_serial_s / fleet_dask_s, 3),
-            "identical_rows": fleet_serial == fleet_dask,
-            "time_per_trace_s": round(per_trace, 3),
-        },
-        "estimate_10000_variants": _estimate(10_000, per_point),
-        "estimate_1000_machines": _estimate(1_000, per_trace),
+    report["sweep"] = {
+        "points": n,
+        "elements": args.elements,
+        "serial_s": round(serial_s, 3),
+        "dask_2_workers_s": round(dask_s, 3),
+        "speedup": round(serial_s / dask_s, 3),
+        "identical_fidelity": all(
+            a["fidelity"] == b["fidelity"]
+            for a, b in zip(serial["points"], parallel["points"], strict=True)
+        ),
+        "time_per_point_s": round(per_point, 3),
     }
+    report["scheduler_tasks_per_s"] = round(tasks_per_s, 1)
+    report["estimate_10000_variants"] = _estimate(10_000, per_point, tasks_per_s)
+    if "fleet" in report:
+        report["estimate_1000_machines"] = _estimate(
+            1_000, report["fleet"]["time_per_trace_s"], tasks_per_s
+        )
     print(json.dumps(report, indent=2))
 
 

@@ -22,6 +22,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
+from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from .errors import GmsCompError
@@ -102,10 +103,12 @@ def run_jobs(
     bar = tqdm(total=len(items), desc=desc, unit="job", disable=not show, file=sys.stderr)
     with bar:
         if client is None:
-            for index, item in enumerate(items):
-                result = _guarded(fn, index, item)
-                bar.update()
-                yield result
+            # Single-threaded BLAS, as in a Dask worker: same arithmetic, same bits.
+            with threadpool_limits(limits=1):
+                for index, item in enumerate(items):
+                    result = _guarded(fn, index, item)
+                    bar.update()
+                    yield result
             return
         from distributed import as_completed
 
