@@ -1,9 +1,7 @@
 """``gms-comp stream``: stream the feedforward over CAN to a drive, by default the emulator.
 
 The feedforward comes from the GMS observer run along the config's sine
-trajectory at the CAN cycle rate. If the GMS table cannot be built (no table
-file configured and no reduction available), a sinusoidal test source stands in
-and a note says so on stderr.
+trajectory at the CAN cycle rate.
 """
 
 from __future__ import annotations
@@ -11,7 +9,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -20,9 +17,7 @@ from firmware_bridge.faults import parse_fault
 from firmware_bridge.session import FeedforwardSource, run_stream
 from firmware_bridge.settings import CanConfig, load_can_config
 from gms_comp.config import default_config_path
-
-TEST_SOURCE_AMPLITUDE = 0.5  # of max_current_A
-TEST_SOURCE_FREQUENCY_HZ = 2.0
+from gms_comp.errors import GmsCompError
 
 
 def register(subparsers: Any) -> None:
@@ -70,13 +65,19 @@ def run(args: argparse.Namespace) -> int:
     }
     cfg = replace(cfg, **overrides)
     if not (math.isfinite(args.duration) and args.duration > 0):
-        print("gms-comp stream: error: --duration must be > 0", file=sys.stderr)
-        return 2
+        raise GmsCompError(f"--duration must be a number of seconds > 0, got {args.duration}")
     faults = [parse_fault(spec) for spec in args.fault]
-    source, source_name = feedforward_source(config_path, cfg, args.duration)
-    report = run_stream(cfg, source, args.duration, faults, args.seed, args.log,
-                        builtin_drive=not args.external_drive)
-    report["source"] = source_name
+    source = gms_observer_source(config_path, cfg, args.duration)
+    report = run_stream(
+        cfg,
+        source,
+        args.duration,
+        faults,
+        args.seed,
+        args.log,
+        builtin_drive=not args.external_drive,
+    )
+    report["source"] = "gms_observer"
     text = json.dumps(report, indent=2, sort_keys=True)
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
@@ -88,22 +89,8 @@ def run(args: argparse.Namespace) -> int:
     return 1 if unsafe else 0
 
 
-def feedforward_source(
-    config_path: Path, cfg: CanConfig, duration_s: float
-) -> tuple[FeedforwardSource, str]:
-    """The GMS observer along the config's trajectory, or the named test source."""
-    try:
-        return gms_observer_source(config_path, cfg, duration_s), "gms_observer"
-    except ImportError as err:
-        print(
-            f"gms-comp stream: note: GMS observer unavailable ({err}); "
-            "streaming the sinusoidal test source instead",
-            file=sys.stderr,
-        )
-        return sinusoidal_test_source(cfg), "sinusoidal_test_source"
-
-
 def gms_observer_source(config_path: Path, cfg: CanConfig, duration_s: float) -> FeedforwardSource:
+    """The GMS observer's feedforward along the config's sine, sampled at the CAN cycle."""
     from gms_comp.observer import FrictionObserver
     from sim.scenarios import load_scenario, reduced_table
     from sim.trajectories import sine
@@ -132,15 +119,5 @@ def gms_observer_source(config_path: Path, cfg: CanConfig, duration_s: float) ->
     def source(t_s: float) -> float:
         k = min(round(t_s / cfg.cycle_period_s) + ahead, len(x) - 1)
         return observer.step(x[k], v[k])
-
-    return source
-
-
-def sinusoidal_test_source(cfg: CanConfig) -> FeedforwardSource:
-    """Not a friction model: a sine at half the current limit, to exercise the link."""
-    amplitude_A = TEST_SOURCE_AMPLITUDE * cfg.max_current_A
-
-    def source(t_s: float) -> float:
-        return amplitude_A * math.sin(2 * math.pi * TEST_SOURCE_FREQUENCY_HZ * t_s)
 
     return source
