@@ -37,26 +37,49 @@ DEFAULT_STANDSTILL_SPEED_M_S = 1e-4
 
 # --- path quantities ----------------------------------------------------------------------
 
+# A standstill ends once the speed exceeds this multiple of the standstill speed.
+RESUME_FACTOR = 2.0
+
 # Layout of the path-state vector.
 (_FIRST, _PREV_X, _CUM, _DIR, _CUM_AT_REVERSAL, _STILL, _STILL_SINCE, _DWELL, _CUM_AT_RESUME,
- _T0, _N_STATE) = range(11)  # fmt: skip
+ _T0, _EXTREME, _CUM_AT_EXTREME, _N_STATE) = range(13)  # fmt: skip
 # Layout of one output row.
 _OUT_DIR, _OUT_S_REV, _OUT_DWELL, _OUT_S_START, _OUT_MOVING, _OUT_ELAPSED, _N_OUT = range(7)
 
 
 @numba.njit(cache=True)
+def _direction_step(state: FloatArray, x: float, v: float, deadband: float) -> None:
+    """Direction of motion from the position: a reversal is a retreat of more than
+    ``deadband`` from the furthest point reached, and counts from that turning point
+    (so encoder steps and filter ringing at a standstill make no reversals)."""
+    d = state[_DIR]
+    if d == 0.0:
+        if v != 0.0:  # the first motion sets the direction; distances count from here
+            state[_DIR] = 1.0 if v > 0.0 else -1.0
+            state[_EXTREME] = x
+            state[_CUM_AT_EXTREME] = state[_CUM]
+            state[_CUM_AT_REVERSAL] = state[_CUM]
+    elif (x - state[_EXTREME]) * d >= 0.0:
+        state[_EXTREME] = x
+        state[_CUM_AT_EXTREME] = state[_CUM]
+    elif (state[_EXTREME] - x) * d > deadband:
+        state[_DIR] = -d
+        state[_CUM_AT_REVERSAL] = state[_CUM_AT_EXTREME]
+        state[_EXTREME] = x
+        state[_CUM_AT_EXTREME] = state[_CUM]
+
+
+@numba.njit(cache=True)
 def _path_step(
-    state: FloatArray, t: float, x: float, v: float, still_speed: float, out: FloatArray
-) -> None:
+    state: FloatArray, t: float, x: float, v: float, still_speed: float, deadband: float,
+    out: FloatArray,
+) -> None:  # fmt: skip
     first = state[_FIRST] == 1.0
     dx = 0.0 if first else x - state[_PREV_X]
     state[_CUM] += abs(dx)
-    sg = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
-    new_dir = sg if sg != 0.0 else state[_DIR]
-    if not first and new_dir != state[_DIR]:
-        state[_CUM_AT_REVERSAL] = state[_CUM]
-    state[_DIR] = new_dir
-    still = abs(v) < still_speed
+    _direction_step(state, x, v, deadband)
+    # hysteresis: a noisy speed near the threshold must not make many short standstills
+    still = abs(v) < (RESUME_FACTOR * still_speed if state[_STILL] == 1.0 else still_speed)
     if first:
         state[_T0] = t
     if still and (first or state[_STILL] == 0.0):
@@ -67,7 +90,7 @@ def _path_step(
     state[_STILL] = 1.0 if still else 0.0
     state[_PREV_X] = x
     state[_FIRST] = 0.0
-    out[_OUT_DIR] = new_dir
+    out[_OUT_DIR] = state[_DIR]
     out[_OUT_S_REV] = state[_CUM] - state[_CUM_AT_REVERSAL]
     out[_OUT_DWELL] = state[_DWELL]
     out[_OUT_S_START] = state[_CUM] - state[_CUM_AT_RESUME]
@@ -77,11 +100,12 @@ def _path_step(
 
 @numba.njit(cache=True)
 def _path_run(
-    state: FloatArray, t: FloatArray, x: FloatArray, v: FloatArray, still_speed: float
-) -> FloatArray:
+    state: FloatArray, t: FloatArray, x: FloatArray, v: FloatArray, still_speed: float,
+    deadband: float,
+) -> FloatArray:  # fmt: skip
     out = np.empty((t.size, _N_OUT))
     for i in range(t.size):
-        _path_step(state, t[i], x[i], v[i], still_speed, out[i])
+        _path_step(state, t[i], x[i], v[i], still_speed, deadband, out[i])
     return out
 
 
@@ -118,12 +142,14 @@ class Context:
         acceleration_m_s2: ArrayLike,
         gms_force_N: ArrayLike,
         standstill_speed_m_s: float = DEFAULT_STANDSTILL_SPEED_M_S,
+        reversal_deadband_m: float = 0.0,
     ) -> Context:
-        """The context of a whole trajectory."""
+        """The context of a whole trajectory (a reversal needs a retreat of more than
+        ``reversal_deadband_m``: set it above the position noise)."""
         t = np.ascontiguousarray(time_s, dtype=np.float64)
         x = np.ascontiguousarray(position_m, dtype=np.float64)
         v = np.ascontiguousarray(velocity_m_s, dtype=np.float64)
-        path = _path_run(_fresh_path_state(), t, x, v, standstill_speed_m_s)
+        path = _path_run(_fresh_path_state(), t, x, v, standstill_speed_m_s, reversal_deadband_m)
         dt = float((t[-1] - t[0]) / (t.size - 1)) if t.size > 1 else 0.0
         return cls._with_path(
             t, x, v, np.asarray(acceleration_m_s2, float), np.asarray(gms_force_N, float), path, dt
@@ -481,10 +507,12 @@ class ExtensionStream:
         extensions: Sequence[Effect],
         sample_time_s: float,
         standstill_speed_m_s: float = DEFAULT_STANDSTILL_SPEED_M_S,
+        reversal_deadband_m: float = 0.0,
     ) -> None:
         self.extensions = tuple(extensions)
         self.sample_time_s = sample_time_s
         self.standstill_speed_m_s = standstill_speed_m_s
+        self.reversal_deadband_m = reversal_deadband_m
         self._filters = [
             e.filter(sample_time_s) for e in self.extensions if isinstance(e, FilterEffect)
         ]
@@ -505,7 +533,7 @@ class ExtensionStream:
     ) -> float:
         """The extended force for one sample."""
         _path_step(self._path, time_s, position_m, velocity_m_s, self.standstill_speed_m_s,
-                   self._row[0])  # fmt: skip
+                   self.reversal_deadband_m, self._row[0])  # fmt: skip
         ctx = Context._with_path(
             np.array([time_s]), np.array([position_m]), np.array([velocity_m_s]),
             np.array([acceleration_m_s2]), np.array([gms_force_N]), self._row,

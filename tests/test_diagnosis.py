@@ -8,14 +8,14 @@ from pathlib import Path
 import pytest
 
 from gms_comp.cli import main
-from gms_comp.diagnosis.run import DiagnosisConfig, diagnose
+from gms_comp.diagnosis.run import diagnose
 from gms_comp.table import read_table
 from gms_comp.traces import write_trace
 from sim.tracegen import MAIN_PARAMETER, generate
 
-# Relative tolerance on the main parameter of each effect the diagnosis recovers reliably.
-# reversal_transient and dwell_time are not here: the free GMS absorbs most of a short
-# transient and the dwell window is estimated from the baseline (see the report).
+# Relative tolerance on the main parameter of each effect (over seeds 1-5 the worst
+# errors were: dwell_time gamma 17 % (it trades off against tau), reversal_transient
+# amplitude 15 % (the free GMS takes a little of the overshoot)).
 TOLERANCE = {
     "offset": 0.05,
     "viscous": 0.1,
@@ -23,6 +23,9 @@ TOLERANCE = {
     "inertia": 0.05,
     "sensor_lowpass": 0.25,
     "stribeck": 0.2,
+    "reversal_transient": 0.2,
+    "dwell_time": 0.25,
+    "drift": 0.25,
 }
 
 
@@ -39,12 +42,9 @@ def test_hidden_effect_is_named_with_its_parameter(hidden: str, seed: int) -> No
     assert result.gain > 0
 
 
-@pytest.mark.parametrize("seed", [10, 11])
-def test_no_false_effect_that_matters_without_hidden_effect(seed: int) -> None:
-    # A free GMS is not the truth's GMS: a small significant step (stribeck, ~2 % of the
-    # held-out RMS) can be kept, but nothing above the selection's main margin.
-    result = diagnose(generate("none", seed).trace)
-    assert result.gain < DiagnosisConfig().margin
+@pytest.mark.parametrize("seed", [10, 11, 12])  # the false-positive rate over more seeds:
+def test_no_effect_on_effect_free_traces(seed: int) -> None:  # benchmarks/bench_diagnose.py
+    assert diagnose(generate("none", seed).trace).effect == "none"
 
 
 def test_cli_writes_spec_keys_and_a_loadable_table(tmp_path: Path) -> None:

@@ -34,7 +34,18 @@ def test_path_distance_since_reversal_and_direction() -> None:
     ctx = fx.Context.along(t, x, v, 0 * t, 0 * t)
     assert ctx.direction[500] == 1 and ctx.direction[1500] == -1
     assert ctx.distance_since_reversal_m[1000] == pytest.approx(1e-3, rel=1e-9)
-    assert ctx.distance_since_reversal_m[1500] == pytest.approx(0.5e-3 - 1e-6, rel=1e-6)
+    # counted from the turning point at 1 mm
+    assert ctx.distance_since_reversal_m[1500] == pytest.approx(0.5e-3, rel=1e-6)
+
+
+def test_steps_and_ringing_within_the_deadband_are_no_reversal() -> None:
+    # a slow ramp read through a 0.1 um encoder, with ringing of a fifth of a step
+    t = np.arange(4000) * 1e-3
+    x = np.round(1e-6 * t / 1e-7) * 1e-7 + 2e-8 * np.sin(2 * np.pi * 40 * t)
+    v = np.gradient(x, t)
+    ctx = fx.Context.along(t, x, v, 0 * t, 0 * t, 0.0, reversal_deadband_m=6e-8)
+    assert np.all(ctx.direction == 1.0)
+    assert ctx.distance_since_reversal_m[-1] > 3.9e-6
 
 
 def test_path_dwell_is_length_of_last_standstill() -> None:

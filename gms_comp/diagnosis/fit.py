@@ -21,6 +21,14 @@ from ..gms import GmsParams, simulate
 from .motion import BoolArray, FloatArray, Kinematics
 
 
+def position_resolution(position_m: FloatArray) -> float:
+    """The smallest position step the sensor reports (the 5th percentile of the
+    nonzero steps of the raw position)."""
+    steps = np.abs(np.diff(position_m))
+    steps = steps[steps > 0]
+    return float(np.percentile(steps, 5)) if steps.size else 0.0
+
+
 def breakaway_grid(kin: Kinematics, n_elements: int) -> FloatArray:
     """Log-spaced element break-away displacements from the position resolution up to a
     tenth of the stroke (at most 1 mm: ball guides reach gross sliding well before)."""
