@@ -53,7 +53,8 @@ def test_cli_writes_spec_keys_and_a_loadable_table(tmp_path: Path) -> None:
     write_trace(trace_path, g.trace)
     out = tmp_path / "out.json"
     table = tmp_path / "ext.json"
-    assert main(["diagnose", str(trace_path), "--json", str(out), "--table", str(table)]) == 0
+    args = ["diagnose", str(trace_path), "--json", str(out), "--table", str(table), "--closed-loop"]
+    assert main(args) == 0
     doc = json.loads(out.read_text())
     for key in ("effect", "effects", "parameters", "baseline_rms_N", "extended_rms_N", "gain",
                 "baseline", "phases"):  # fmt: skip
@@ -62,6 +63,10 @@ def test_cli_writes_spec_keys_and_a_loadable_table(tmp_path: Path) -> None:
     assert doc["gain"] == pytest.approx(1 - doc["extended_rms_N"] / doc["baseline_rms_N"])
     loaded = read_table(table)
     assert loaded.extensions[0].effect == "offset"
+    # an axis with the offset: compensating it too lowers both the reversal peak and the RMS
+    cl = doc["closed_loop"]
+    for key in ("peak_reversal_error_m", "rms_error_m"):
+        assert cl["extended"][key] < cl["baseline"][key]
 
 
 def test_cli_bad_trace_is_one_line_exit_2(

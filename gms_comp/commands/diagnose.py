@@ -62,6 +62,16 @@ def register(subparsers: Any) -> None:
     p.add_argument("--json", metavar="OUT.json", help="write the result here (else stdout)")
     p.add_argument("--report", metavar="DIR", help="write plots and the extended table here")
     p.add_argument("--table", metavar="OUT", help="write the extended model as a GMS table")
+    p.add_argument(
+        "--closed-loop",
+        nargs="?",
+        const="",
+        metavar="SCENARIO",
+        help=(
+            "simulate the axis with the diagnosed friction and compare the compensator with "
+            "the baseline and the extended model (scenario config; default: Table 1's)"
+        ),
+    )
     p.set_defaults(func=run)
 
 
@@ -78,6 +88,10 @@ def run(args: argparse.Namespace) -> int:
     doc["trace"] = str(args.trace)
     if trace.force_kind == "drive" and kind == "drive":
         doc.update(_benchmark_errors(trace, validation, result))
+    if args.closed_loop is not None:
+        from ..diagnosis.closed_loop import closed_loop_gain  # the simulated axis when asked
+
+        doc["closed_loop"] = closed_loop_gain(result, args.closed_loop or None)
     table_path = args.table or (Path(args.report) / "extended.table.json" if args.report else None)
     if args.report:
         Path(args.report).mkdir(parents=True, exist_ok=True)
@@ -98,9 +112,11 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_fleet(args: argparse.Namespace, mapping: Mapping[str, str] | None) -> int:
     """Many traces: one job each, a summary row each, recurring effects across them."""
-    for flag in ("validate", "table"):
-        if getattr(args, flag):
-            raise GmsCompError(f"--{flag} applies to a single trace, not to a fleet")
+    for flag in ("validate", "table", "closed_loop"):
+        if getattr(args, flag) is not None:
+            raise GmsCompError(
+                f"--{flag.replace('_', '-')} applies to a single trace, not to a fleet"
+            )
     jobs = [
         FleetJob(
             trace=str(path),

@@ -37,7 +37,7 @@ DRIVE_CUTOFF_HZ = 100.0
 # Joint refits with the GMS force updated (enough for the scaling effects to settle).
 JOINT_REFITS = 3
 # Relative steps of the local search on shape parameters after the grid.
-REFINE_STEPS = (1.4, 1.15, 1.05)
+REFINE_STEPS = (1.3, 1.08)
 # Contiguous chunks of held-out samples for the significance of an improvement.
 SIGNIFICANCE_CHUNKS = 20
 
