@@ -137,7 +137,7 @@ def test_catalogue_names_match_spec() -> None:
 def test_drive_lag_is_a_first_order_lead() -> None:
     # command = force + lag dforce/dt: a ramp of slope 2 N/s gains 2 * lag once started
     t = np.arange(100) * 1e-3
-    out = fx.DriveLag(5e-4).filter_columns(2.0 * t, 1e-3)
+    out = fx.DriveLag(5e-4).filter_columns(np.asarray(2.0 * t, dtype=np.float64), 1e-3)
     np.testing.assert_allclose(out[10:], 2.0 * t[10:] + 2.0 * 5e-4, atol=1e-12)
 
 
