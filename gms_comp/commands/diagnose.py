@@ -11,14 +11,16 @@ from typing import Any
 
 import numpy as np
 
-from ..config import config_hash
+from ..config import config_hash, load_ball_config, read_toml
 from ..diagnosis import emps
 from ..diagnosis.run import Diagnosis, diagnose, load_diagnosis_config
 from ..effects import effect_to_dict
 from ..errors import GmsCompError
 from ..fleet import FleetJob, diagnose_fleet, format_table
+from ..gms import GmsParams
+from ..reduction import reduce_to_gms
 from ..scaleout import dask_client
-from ..table import Extension, Fidelity, GmsTable, write_table
+from ..table import Extension, Fidelity, GmsTable, read_table, write_table
 from ..traces import Trace, load_trace, parse_mapping
 
 
@@ -45,7 +47,18 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("--workers", type=int, help="local cluster size (default: one per core)")
     p.add_argument("--serial", action="store_true", help="many traces in this process, no Dask")
-    p.add_argument("--config", help="config file ([diagnosis] section)")
+    p.add_argument(
+        "--config",
+        help=(
+            "config file: [diagnosis] section; with [bearing] and [stand] sections its ball "
+            "model is reduced to a GMS table, calibrated as the baseline"
+        ),
+    )
+    p.add_argument(
+        "--table-in",
+        metavar="TABLE",
+        help="GMS table to calibrate as the baseline (its level, presliding, velocity level)",
+    )
     p.add_argument(
         "--force-kind",
         choices=("friction", "drive"),
@@ -83,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
     trace = load_trace(args.trace, mapping)
     validation = load_trace(args.validate, mapping) if args.validate else None
     kind = args.force_kind or trace.force_kind or "friction"
-    result = diagnose(trace, kind, validation, load_diagnosis_config(args.config))
+    config = load_diagnosis_config(args.config)
+    result = diagnose(trace, kind, validation, config, _baseline_table(args))
     doc = result.to_json()
     doc["trace"] = str(args.trace)
     if trace.force_kind == "drive" and kind == "drive":
@@ -110,9 +124,19 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _baseline_table(args: argparse.Namespace) -> GmsParams | None:
+    """The GMS table to calibrate: ``--table-in``, else the ball model of a ``--config``
+    that describes a bearing, else none (the free NNLS GMS)."""
+    if args.table_in:
+        return read_table(args.table_in).params
+    if args.config and "bearing" in read_toml(args.config):
+        return reduce_to_gms(load_ball_config(args.config)).params
+    return None
+
+
 def _run_fleet(args: argparse.Namespace, mapping: Mapping[str, str] | None) -> int:
     """Many traces: one job each, a summary row each, recurring effects across them."""
-    for flag in ("validate", "table", "closed_loop"):
+    for flag in ("validate", "table", "table_in", "closed_loop"):
         if getattr(args, flag) is not None:
             raise GmsCompError(
                 f"--{flag.replace('_', '-')} applies to a single trace, not to a fleet"

@@ -22,7 +22,6 @@ from sim.scenarios import Physics, Scenario, build_reference, load_scenario, run
 from .. import effects as fx
 from ..gms import GmsParams, GmsStream, simulate
 from ..table import Extension, Fidelity, GmsTable
-from .fit import gms_from_limits
 from .run import Diagnosis
 
 FloatArray = fx.FloatArray
@@ -67,9 +66,7 @@ def closed_loop_gain(
     )
     physical = [e for e in result.extensions if not e.measurement_only]
     disturbance = _effect_force(s, result.gms, physical)
-    base = gms_from_limits(
-        np.asarray(result.baseline["breakaway_m"]), np.asarray(result.baseline["limit_N"])
-    )
+    base = result.base_gms
     level = max(float(result.baseline["sliding_force_N"]), 1e-12)
     tables = {
         "baseline": GmsTable(

@@ -1,7 +1,11 @@
 """The diagnosis: calibrate, show where the baseline is wrong, fit, select, extend.
 
 1. The baseline is a free NNLS GMS (limits on a log grid of break-away displacements)
-   plus, for a drive force, the moving mass, fitted on the training samples.
+   plus, for a drive force, the moving mass, fitted on the training samples. Given a
+   GMS table (from the user's bearing), its level, presliding scale and velocity
+   dependence are calibrated instead (:mod:`.baseline`), and the table is the baseline
+   if its held-out RMS is within ``table_margin`` of the free GMS's (else the free GMS,
+   and the JSON says so).
 2. Its residual is broken down by motion phase (:mod:`.phases`).
 3. Every catalogue effect is fitted as extra design columns (with its own shape grid).
 4. Forward selection on held-out samples: an effect is kept only if it lowers the
@@ -30,6 +34,7 @@ from ..config import in_range, parse_section, positive, read_toml
 from ..gms import GmsParams, simulate
 from ..traces import ForceKind, Trace
 from . import fit
+from .baseline import FreeBasis, Samples, TableBasis, calibrate_table, presliding_length
 from .motion import BoolArray, FloatArray, Kinematics, kinematics
 from .phases import phase_masks, residual_by_phase
 
@@ -70,6 +75,10 @@ class DiagnosisConfig:
     # an encoder step is a fraction of a step (raise it above 1 for an encoder that
     # dithers by a count at a standstill).
     reversal_deadband_steps: float = field(default=0.6, metadata=in_range(0.0, 1e3))
+    # A calibrated GMS table is the baseline if its held-out RMS is at most this much
+    # (relative) above the free NNLS GMS's: its parameters mean something, the free
+    # GMS's a little better fit on the training trace may be its flexibility only.
+    table_margin: float = field(default=0.1, metadata=in_range(0.0, 10.0))
 
 
 def load_diagnosis_config(path: str | Path | None) -> DiagnosisConfig:
@@ -86,9 +95,20 @@ class _Data:
     force_N: FloatArray
     train: BoolArray
     held: BoolArray
-    phi: FloatArray  # element basis
+    phi: FloatArray  # the GMS columns of the baseline basis
     base: fit.Columns  # phi (+ acceleration for a drive force)
     ctx: fx.Context | None = None
+
+
+Basis = FreeBasis | TableBasis
+
+
+@dataclass
+class _Baseline:
+    basis: Basis
+    datas: list[_Data]
+    theta: FloatArray
+    info: dict[str, Any]
 
 
 @dataclass(frozen=True)
@@ -107,6 +127,7 @@ class Diagnosis:
     extended_rms_N: float
     baseline: dict[str, Any]
     phases: dict[str, dict[str, float]]
+    base_gms: GmsParams  # the baseline's GMS, without the effects' refit
     gms: GmsParams
     extensions: list[fx.Effect]
     noise_rms_N: float
@@ -143,19 +164,24 @@ def diagnose(
     force_kind: ForceKind = "friction",
     validation: Trace | None = None,
     config: DiagnosisConfig | None = None,
+    table: GmsParams | None = None,
 ) -> Diagnosis:
-    """Diagnose ``trace`` (see the module docstring)."""
+    """Diagnose ``trace`` (see the module docstring); ``table``: a GMS table to calibrate
+    as the baseline (else the free NNLS GMS)."""
     cfg = config or DiagnosisConfig()
     drive = force_kind == "drive"
     cutoff = cfg.filter_cutoff_Hz or (DRIVE_CUTOFF_HZ if drive else 0.45 / trace.sample_time_s)
     kin = kinematics(trace, cutoff)
-    breakaway = fit.breakaway_grid(kin, cfg.n_elements)
-    datas = _prepare(trace, validation, kin, breakaway, drive, cfg.n_blocks, cutoff)
+    free = FreeBasis(fit.breakaway_grid(kin, cfg.n_elements))
+    datas = _prepare(trace, validation, kin, free, drive, cfg.n_blocks, cutoff)
     still_speed = cfg.standstill_speed_fraction * float(np.max(np.abs(kin.velocity_m_s)))
     deadband = cfg.reversal_deadband_steps * fit.position_resolution(trace.position_m)
 
-    theta = _fit_train(datas, [d.base for d in datas])
-    limits = theta[: breakaway.size]
+    chosen_baseline = _baseline(datas, free, table, drive, cfg.table_margin)
+    basis, datas, theta = chosen_baseline.basis, chosen_baseline.datas, chosen_baseline.theta
+    n_gms = datas[0].phi.shape[1]
+    limits = theta[:n_gms]
+    base_gms = basis.gms(limits)
     for d in datas:
         force = d.phi @ limits
         d.ctx = fx.Context.along(
@@ -169,14 +195,15 @@ def diagnose(
         )
     base_pred = [d.base.values @ theta for d in datas]
     baseline_rms = _held_rms(datas, base_pred)
-    presliding = _presliding_length(breakaway, limits)
-    ranked, chosen = _select(datas, cfg, drive, presliding, float(np.sum(limits)))
+    presliding = presliding_length(base_gms)
+    sliding = float(np.sum(base_gms.limit_N)) * base_gms.slip_level
+    ranked, chosen = _select(datas, cfg, drive, presliding, sliding)
 
-    final, ranked = _joint_refit(datas, chosen, ranked, breakaway.size)
-    gms = fit.gms_from_limits(breakaway, final[: breakaway.size])
+    final, ranked = _joint_refit(datas, chosen, ranked, n_gms)
+    gms = basis.gms(final[:n_gms])
     extensions = [c.effect for c in ranked]
     if drive:
-        extensions.append(fx.Inertia(float(final[breakaway.size])))
+        extensions.append(fx.Inertia(float(final[n_gms])))
     extended_pred = [_run_extended(d, gms, extensions) for d in datas]
     extended_rms = _held_rms(datas, extended_pred)
     main = datas[0]
@@ -189,22 +216,25 @@ def diagnose(
     effect = ranked[0].effect.name if ranked else "none"
     if not ranked and baseline_rms > cfg.unknown_ratio * noise:
         effect = "unknown"
-    mass = float(theta[breakaway.size]) if drive else 0.0
+    mass = float(theta[n_gms]) if drive else 0.0
     return Diagnosis(
         effect=effect,
         ranked=ranked,
         baseline_rms_N=baseline_rms,
         extended_rms_N=extended_rms,
         baseline={
-            "model": "free_nnls_gms",
+            "model": "free_nnls_gms" if isinstance(basis, FreeBasis) else "table_gms",
+            **chosen_baseline.info,
             "force_kind": force_kind,
-            "breakaway_m": breakaway.tolist(),
-            "limit_N": limits.tolist(),
-            "sliding_force_N": float(np.sum(limits)),
+            "breakaway_m": basis.breakaway_m.tolist(),
+            "limit_N": base_gms.limit_N.tolist(),
+            "slip_level": base_gms.slip_level,
+            "sliding_force_N": sliding,
             "presliding_m": presliding,
             "mass_kg": mass,
         },
         phases=residual_by_phase(residual, phase_masks(main.ctx, presliding)),
+        base_gms=base_gms,
         gms=gms,
         extensions=extensions,
         noise_rms_N=noise,
@@ -232,16 +262,13 @@ def _prepare(
     trace: Trace,
     validation: Trace | None,
     kin: Kinematics,
-    breakaway: FloatArray,
+    basis: Basis,
     drive: bool,
     n_blocks: int,
     cutoff_Hz: float,
 ) -> list[_Data]:
     def data(k: Kinematics, force: FloatArray, held: BoolArray) -> _Data:
-        phi = fit.element_basis(k, breakaway)
-        cols = [phi, k.acceleration_m_s2[:, None]] if drive else [phi]
-        base = fit.Columns(np.column_stack(cols), np.zeros(sum(c.shape[1] for c in cols)))
-        return _Data(k, force, ~held, held, phi, base)
+        return _Data(k, force, ~held, held, *_base_columns(k, basis, drive))
 
     n = len(trace)
     if validation is None:
@@ -254,6 +281,43 @@ def _prepare(
     ]
 
 
+def _base_columns(kin: Kinematics, basis: Basis, drive: bool) -> tuple[FloatArray, fit.Columns]:
+    """The basis's GMS columns and the baseline design (+ acceleration for a drive force)."""
+    phi = basis.columns(kin)
+    cols = [phi, kin.acceleration_m_s2[:, None]] if drive else [phi]
+    return phi, fit.Columns(np.column_stack(cols), np.zeros(sum(c.shape[1] for c in cols)))
+
+
+def _baseline(
+    datas: list[_Data], free: FreeBasis, table: GmsParams | None, drive: bool, margin: float
+) -> _Baseline:
+    """The free NNLS GMS, or the calibrated ``table`` if its held-out RMS is within
+    ``margin`` (relative) of the free GMS's; ``info`` holds both RMS values and the
+    table's calibrated factors."""
+    theta = _fit_train(datas, [d.base for d in datas])
+    free_rms = _held_rms(datas, [d.base.values @ theta for d in datas])
+    info: dict[str, Any] = {"source": "free_nnls", "free_nnls_heldout_rms_N": free_rms}
+    if table is None:
+        return _Baseline(free, datas, theta, info)
+    basis = calibrate_table(table, [Samples(d.kin, d.force_N, d.train) for d in datas], drive)
+    table_datas = [
+        dataclasses.replace(d, phi=phi, base=base)
+        for d, (phi, base) in ((d, _base_columns(d.kin, basis, drive)) for d in datas)
+    ]
+    table_theta = _fit_train(table_datas, [d.base for d in table_datas])
+    table_rms = _held_rms(table_datas, [d.base.values @ table_theta for d in table_datas])
+    info.update(
+        table_heldout_rms_N=table_rms,
+        level_factor=float(table_theta[0]),
+        presliding_factor=basis.presliding_factor,
+        slip_level_factor=basis.slip_level_factor,
+        transition_velocity_m_s=basis.params.transition_velocity_m_s,
+    )
+    if table_rms <= (1.0 + margin) * free_rms:
+        return _Baseline(basis, table_datas, table_theta, {**info, "source": "table"})
+    return _Baseline(free, datas, theta, info)
+
+
 def _fit_train(datas: Sequence[_Data], columns: Sequence[fit.Columns]) -> FloatArray:
     a = np.concatenate([c.values[d.train] for d, c in zip(datas, columns, strict=True)])
     y = np.concatenate([d.force_N[d.train] for d in datas])
@@ -262,15 +326,6 @@ def _fit_train(datas: Sequence[_Data], columns: Sequence[fit.Columns]) -> FloatA
 
 def _held_rms(datas: Sequence[_Data], predictions: Sequence[FloatArray]) -> float:
     return fit.rms(_held_residual(datas, predictions))
-
-
-def _presliding_length(breakaway: FloatArray, limits: FloatArray) -> float:
-    """Displacement by which 90 % of the sliding force is reached on the virgin curve."""
-    total = float(np.sum(limits))
-    if total <= 0:
-        return float(breakaway[-1])
-    reach = np.cumsum(limits) / total
-    return float(breakaway[np.searchsorted(reach, 0.9)])
 
 
 @dataclass(frozen=True)
