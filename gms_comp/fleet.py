@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any, cast
 
 from .errors import TraceError
+from .gms import GmsParams
 from .scaleout import JobResult, run_jobs
 
 
@@ -30,6 +31,7 @@ class FleetJob:
     config: str | None = None
     mapping: tuple[tuple[str, str], ...] = ()
     report_dir: str | None = None
+    table: GmsParams | None = None  # a baseline GMS to calibrate (else the free NNLS GMS)
 
 
 def diagnose_one(job: FleetJob) -> dict[str, Any]:
@@ -41,7 +43,8 @@ def diagnose_one(job: FleetJob) -> dict[str, Any]:
     kind = job.force_kind or trace.force_kind or "friction"
     if kind not in ("friction", "drive"):
         raise TraceError(f"{job.trace}: force kind must be friction or drive, got {kind!r}")
-    result = diagnose(trace, cast(ForceKind, kind), None, load_diagnosis_config(job.config))
+    config = load_diagnosis_config(job.config)
+    result = diagnose(trace, cast(ForceKind, kind), None, config, job.table)
     doc = result.to_json()
     row: dict[str, Any] = {
         "trace": job.trace,
@@ -53,6 +56,7 @@ def diagnose_one(job: FleetJob) -> dict[str, Any]:
         "baseline_rms_N": doc["baseline_rms_N"],
         "extended_rms_N": doc["extended_rms_N"],
         "gain": doc["gain"],
+        "baseline_source": doc["baseline"].get("source", "free_nnls"),
     }
     if job.report_dir is not None:
         from .diagnosis.report import write_report

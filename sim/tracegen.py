@@ -150,3 +150,19 @@ def generate(
         source=f"tracegen:{hidden}:{seed}", time_s=t, position_m=measured_x, force_N=force
     )
     return GeneratedTrace(trace, effect, "friction")
+
+
+def scaled_table_trace(
+    table: GmsParams, level: float, presliding: float, seed: int, scale: float = 0.5
+) -> Trace:
+    """A friction trace of ``table`` with its level and presliding length scaled, over the
+    identification profile, with 1 % noise and 0.1 um position steps: a machine whose
+    guides match the catalogue table up to the three factors a calibration must find."""
+    from gms_comp.diagnosis.baseline import scaled  # the diagnosis's own definition of the factors
+
+    t, x, v = identification_profile(1000.0, scale)
+    truth = scaled(table, level, presliding)
+    force = simulate(truth, x, v)[0]
+    noise = 0.01 * float(np.sum(truth.limit_N))
+    force = force + np.random.default_rng(seed).normal(0.0, noise, force.size)
+    return Trace(source="scaled table", time_s=t, position_m=np.round(x, 7), force_N=force)

@@ -5,18 +5,16 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from gms_comp.cli import main
 from gms_comp.config import load_ball_config
-from gms_comp.diagnosis.baseline import scaled
 from gms_comp.diagnosis.run import diagnose
-from gms_comp.gms import GmsParams, simulate
+from gms_comp.gms import GmsParams
 from gms_comp.reduction import reduce_to_gms
 from gms_comp.table import GmsTable, read_table, write_table
 from gms_comp.traces import Trace, write_trace
-from sim.tracegen import MAIN_PARAMETER, generate, identification_profile
+from sim.tracegen import MAIN_PARAMETER, generate, scaled_table_trace
 
 # Relative tolerance on the main parameter of each effect (over seeds 1-5 the worst
 # errors were: dwell_time gamma 17 % (it trades off against tau), reversal_transient
@@ -104,12 +102,7 @@ def ball_table() -> GmsTable:
 
 
 def _scaled_ball_trace(table: GmsParams, seed: int) -> Trace:
-    t, x, v = identification_profile(1000.0, 0.5)
-    truth = scaled(table, LEVEL_FACTOR, PRESLIDING_FACTOR)
-    force = simulate(truth, x, v)[0]
-    noise = 0.01 * float(np.sum(truth.limit_N))
-    force = force + np.random.default_rng(seed).normal(0.0, noise, force.size)
-    return Trace(source="scaled ball table", time_s=t, position_m=np.round(x, 7), force_N=force)
+    return scaled_table_trace(table, LEVEL_FACTOR, PRESLIDING_FACTOR, seed)
 
 
 def test_table_baseline_recovers_level_and_presliding(ball_table: GmsTable) -> None:

@@ -9,10 +9,13 @@ from typing import Any
 import pytest
 
 from gms_comp.cli import main
+from gms_comp.config import load_ball_config
 from gms_comp.fleet import FleetJob, diagnose_fleet, recurring_effects
+from gms_comp.reduction import reduce_to_gms
 from gms_comp.scaleout import dask_client
+from gms_comp.table import write_table
 from gms_comp.traces import write_trace
-from sim.tracegen import generate
+from sim.tracegen import generate, scaled_table_trace
 
 HIDDEN = [("offset", 1), ("offset", 2), ("none", 3)]
 
@@ -96,3 +99,21 @@ def test_single_trace_options_are_refused_for_a_fleet(
     paths = [job.trace for job in fleet[0][:2]]
     assert main(["diagnose", *paths, "--serial", "--validate", paths[0]]) == 2
     assert "--validate applies to a single trace" in capsys.readouterr().err
+
+
+def test_fleet_calibrates_one_catalogue_table_per_trace(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--table-in across a fleet: a machine that matches the table is calibrated on it,
+    one that does not falls back to the free GMS."""
+    table = reduce_to_gms(load_ball_config(None), 8)
+    table_path = tmp_path / "guide.json"
+    write_table(table_path, table)
+    like, unlike = tmp_path / "like.csv", tmp_path / "unlike.csv"
+    write_trace(like, scaled_table_trace(table.params, 1.3, 0.7, seed=4))
+    write_trace(unlike, generate("none", 10).trace)
+    out = tmp_path / "fleet.json"
+    args = ["diagnose", str(like), str(unlike), "--table-in", str(table_path), "--serial"]
+    assert main([*args, "--json", str(out)]) == 0
+    rows = json.loads(out.read_text())["traces"]
+    assert [r["baseline_source"] for r in rows] == ["table", "free_nnls"]

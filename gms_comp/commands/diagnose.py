@@ -135,12 +135,16 @@ def _baseline_table(args: argparse.Namespace) -> GmsParams | None:
 
 
 def _run_fleet(args: argparse.Namespace, mapping: Mapping[str, str] | None) -> int:
-    """Many traces: one job each, a summary row each, recurring effects across them."""
-    for flag in ("validate", "table", "table_in", "closed_loop"):
+    """Many traces: one job each, a summary row each, recurring effects across them.
+
+    A baseline table (``--table-in`` or a bearing ``--config``) is made once here and
+    calibrated on each trace by its job."""
+    for flag in ("validate", "table", "closed_loop"):
         if getattr(args, flag) is not None:
             raise GmsCompError(
                 f"--{flag.replace('_', '-')} applies to a single trace, not to a fleet"
             )
+    table = _baseline_table(args)
     jobs = [
         FleetJob(
             trace=str(path),
@@ -148,6 +152,7 @@ def _run_fleet(args: argparse.Namespace, mapping: Mapping[str, str] | None) -> i
             config=args.config,
             mapping=tuple(sorted(mapping.items())) if mapping else (),
             report_dir=args.report,
+            table=table,
         )
         for path in args.traces
     ]
