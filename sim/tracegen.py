@@ -41,6 +41,7 @@ TRUTH_GMS = GmsParams(
     limit_N=np.array([4.0, 3.0, 2.5, 2.0, 1.5]),
 )
 TRUTH_PRESLIDING_M = 20e-6
+GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
 
 def identification_profile(
@@ -48,9 +49,12 @@ def identification_profile(
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """A recommended identification trajectory ``(t_s, x_m, v_m_s)``.
 
-    Parts: the seed's step-and-stop (0.1 mm steps at 10 mm/s) with dwell times from 10 ms
-    to 1 s, strokes of 20 mm at 5, 20 and 50 mm/s, and presliding cycles of 2-50 um.
-    ``scale`` < 1 shortens it for quick tests (fewer steps and cycles).
+    Parts: the seed's step-and-stop (0.1 mm steps at 10 mm/s) with dwell times spread
+    log-uniformly from 2 ms to 2 s, strokes of 20 mm at 5, 20 and 50 mm/s, and presliding
+    cycles of 2-50 um. ``scale`` < 1 shortens it for quick tests (fewer steps and cycles).
+    The dwells span three decades around the 10-50 ms time constants of a dwell gain
+    1 + gamma ln(1 + t_d/tau): with 10 ms to 1 s only, gamma and tau trade off (the
+    diagnosis found gamma 20-37 % and tau about 2x too high, their product right).
     """
     dt = 1.0 / sample_rate_Hz
     segments: list[FloatArray] = []
@@ -66,12 +70,14 @@ def identification_profile(
     def dwell(duration_s: float) -> None:
         segments.append(np.full(max(1, round(duration_s / dt)), x))
 
-    n_steps = max(3, round(10 * scale))
-    dwells = np.geomspace(0.01, 1.0, n_steps)
+    n_steps = max(4, round(16 * scale))
+    dwells = np.geomspace(0.002, 2.0, n_steps)
+    # shuffled (golden-ratio order), so a dwell's length does not follow from its place
+    order = np.argsort((np.arange(n_steps) * GOLDEN) % 1.0)
     for sign in (1.0, -1.0):
-        for k in range(n_steps):
+        for k in order:
             move(sign * 1e-4, 0.01)
-            dwell(float(dwells[(k * 7) % n_steps]))
+            dwell(float(dwells[k]))
     for speed in (0.005, 0.02, 0.05):
         for _ in range(max(1, round(2 * scale))):
             move(0.02, speed)
