@@ -69,10 +69,17 @@ def test_drive_heartbeat_stops_when_0x1017_is_zeroed() -> None:
     with running_drive(config()) as (drive, node):
         assert node.sdo[0x1017].raw == 100  # [can] heartbeat_period_s = 0.1 s
         node.sdo[0x1017].raw = 0
-        assert drive.cia402 is not None
-        sent = drive.cia402.heartbeats_sent
-        time.sleep(0.25)
-        assert drive.cia402.heartbeats_sent == sent
+    # The thread has stopped: step the drive on a clock of its own for 1 s (ten
+    # heartbeat periods) rather than sleep and hope the thread was scheduled. The
+    # bus is closed too, so a heartbeat would also raise on sending.
+    receiver = drive.cia402
+    assert receiver is not None
+    sent = receiver.heartbeats_sent
+    assert sent >= 1  # it did beat before 0x1017 was zeroed
+    start_s = time.time()
+    for k in range(1000):
+        drive.tick(start_s + k * drive.cfg.cycle_period_s)
+    assert receiver.heartbeats_sent == sent
 
 
 def test_drive_heartbeat_period_follows_0x1017() -> None:

@@ -119,6 +119,11 @@ def test_e2e_drive_reports_status_back() -> None:
 def test_stale_frame_after_loss_is_not_applied(profile: str) -> None:
     """Delays and drops together: a delayed frame arriving after its successor was lost."""
     rig, applied = run(profile, "delay:0.2", "drop:0.2")
+    report = rig.report()
+    # Both faults really happened, and late frames were turned away, not applied.
+    assert report["faults_injected"]["delay"] > 10 and report["faults_injected"]["drop"] > 10
+    late = ("out_of_order", "stale", "duplicate")
+    assert sum(report["frames_rejected"][r] for r in late) > 0
     assert_safe(rig, applied)
 
 
