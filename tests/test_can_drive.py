@@ -14,6 +14,7 @@ import can
 import canopen
 import pytest
 
+from firmware_bridge import session
 from firmware_bridge.cia402 import default_eds_path
 from firmware_bridge.emulator import DriveEmulator
 from firmware_bridge.session import Rig, run_stream
@@ -41,6 +42,9 @@ def running_drive(cfg: CanConfig) -> Iterator[tuple[DriveEmulator, canopen.Remot
         drive = DriveEmulator(cfg, drive_bus)
         thread = threading.Thread(target=drive.run, args=(stop,))
         network = canopen.Network()
+        # canopen's notifier polls the bus every second by default: disconnecting
+        # would wait up to that long for its reader thread.
+        network.NOTIFIER_CYCLE = 0.05
         network.connect(interface="virtual", channel=cfg.channel)
         try:
             node = canopen.RemoteNode(cfg.drive_node_id, str(default_eds_path()))
@@ -102,8 +106,10 @@ def test_real_time_stream_follows_the_nc_sync() -> None:
     assert report["frames_rejected"]["duplicate"] == 0
 
 
-def test_follower_without_sync_stays_silent() -> None:
+def test_follower_without_sync_stays_silent(monkeypatch: pytest.MonkeyPatch) -> None:
     """No NC SYNC on the bus: the follower sends nothing, the drive applies nothing."""
+    # The outcome does not depend on how long the follower waits: 0.2 s, not the 2 s default.
+    monkeypatch.setattr(session, "FIRST_SYNC_WAIT_S", 0.2)
     cfg = config(sync_master=False)
     with Rig(cfg, builtin_drive=False) as rig:
         assert rig.nc_sync is None

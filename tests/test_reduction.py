@@ -151,9 +151,12 @@ def test_load_family_follows_the_sliding_force_and_round_trips(tmp_path: Path) -
         sliding_N = balls * steady_state(cfg, load).sliding_force_N
         assert table.params.slip_level * float(limits.sum()) == pytest.approx(sliding_N, rel=0.03)
     # Element i at 25 N and at 100 N is the same element of the pattern: its breakpoint
-    # moves with the contact, by far less than the spacing of the pattern.
-    bp = family.limit_N / family.stiffness_N_per_m
-    assert np.all(np.diff(bp, axis=1) > 0)
+    # moves with the contact by less than the spacing of the pattern, so the nearest
+    # breakpoint at the other load (on a log scale) is element i's own.
+    log_bp = np.log(family.limit_N / family.stiffness_N_per_m)
+    assert np.all(np.diff(log_bp, axis=1) > 0)
+    nearest = np.argmin(np.abs(log_bp[1][:, None] - log_bp[0][None, :]), axis=1)
+    np.testing.assert_array_equal(nearest, np.arange(family.limit_N.shape[1]))
     path = tmp_path / "t.json"
     write_table(path, table)
     back = read_table(path).load_family
