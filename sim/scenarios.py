@@ -12,6 +12,7 @@ would give following errors at the nanometre noise floor of the encoder.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -19,6 +20,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
 from gms_comp.config import (
     BallConfig,
@@ -40,7 +42,7 @@ from .controller import CascadeController, ControllerConfig, design
 from .link import DirectLink, FeedforwardLink
 from .plant import Friction, LinearMotorAxis, PlantConfig, ScaledFriction
 from .strategies import STRATEGIES, baseline_model, calibrate
-from .trajectories import Reference, circle, reversals, sine, step_stop, stops
+from .trajectories import FloatArray, Reference, circle, reversals, sine, step_stop, stops
 
 MAX_DURATION_S = 600.0
 
@@ -50,7 +52,7 @@ class ScenarioConfig:
     """The ``[scenario]`` section: trajectory, delays and scoring windows."""
 
     trajectory: Literal["circle", "sine", "step_stop"] = "circle"
-    circle_axis: Literal["x", "y"] = "x"
+    circle_axis: Literal["x", "y", "xy"] = "x"
     radius_m: float = field(default=0.01, metadata=positive())
     feed_m_s: float = field(default=0.02, metadata=positive())
     revolutions: float = field(default=1.0, metadata=positive())
@@ -101,7 +103,11 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
 
 
 def build_reference(s: Scenario) -> Reference:
-    """The scenario's trajectory at the servo rate; refuse one the axis cannot follow."""
+    """The scenario's trajectory at the servo rate; refuse one the axis cannot follow.
+
+    A two-axis circle (``circle_axis = "xy"``) gives its x axis here; :func:`axis_scenarios`
+    splits it into one scenario per axis.
+    """
     c = s.scenario
     smooth = (s.controller.servo_period_s, c.acceleration_window_s, c.jerk_window_s, c.dwell_s)
     duration_s = {
@@ -219,6 +225,59 @@ def run_strategies(
         observer = build_observer(s, name, physics)
         results[name] = loop.run(observer, link(s.scenario.transport_delay_cycles))
     return results
+
+
+def axis_scenarios(s: Scenario) -> tuple[Scenario, ...]:
+    """One scenario per simulated axis: ``s`` itself, or for a two-axis circle
+    (``circle_axis = "xy"``) its x and its y axis, identical but for the reference.
+
+    The axes are mechanically independent, so each runs on its own plant, controller,
+    friction truth and compensator, and a contour is two single-axis runs.
+    """
+    c = s.scenario
+    if c.trajectory != "circle" or c.circle_axis != "xy":
+        return (s,)
+    return tuple(
+        dataclasses.replace(s, scenario=dataclasses.replace(c, circle_axis=axis))
+        for axis in ("x", "y")
+    )
+
+
+def radial_error(x: RunResult, y: RunResult, radius_m: float) -> FloatArray:
+    """Actual minus commanded radius of a two-axis circle, per servo cycle.
+
+    The circle of :func:`circle` is centred on ``(0, radius_m)``; both radii are taken
+    about that centre at the same instant, so the smoothing filter's slightly smaller
+    commanded path does not count as error.
+    """
+    actual = np.hypot(x.position_m, y.position_m - radius_m)
+    commanded = np.hypot(x.reference.position_m, y.reference.position_m - radius_m)
+    return actual - commanded
+
+
+def circularity(x: RunResult, y: RunResult, c: ScenarioConfig) -> dict[str, float | None]:
+    """Contour scores of a two-axis circle (m).
+
+    ``peak_quadrant_error_m``: the largest radial deviation within ``reversal_window_s``
+    after each quadrant change, where either axis reverses or starts from rest (a full
+    circle from the bottom point has three reversals; its fourth quadrant change is the
+    y axis breaking away at the start). ``rms_radial_error_m``: over the whole run.
+    """
+    radial = radial_error(x, y, c.radius_m)
+    window = max(1, round(c.reversal_window_s / x.reference.period_s))
+    turns = np.unique(np.concatenate([_quadrant_changes(r.reference) for r in (x, y)]))
+    peaks = [float(np.abs(radial[r : r + window]).max()) for r in turns]
+    return {
+        "peak_quadrant_error_m": max(peaks, default=None),
+        "rms_radial_error_m": float(np.sqrt(np.mean(radial**2))),
+    }
+
+
+def _quadrant_changes(reference: Reference) -> NDArray[np.intp]:
+    """Cycles where one axis reverses or leaves a standstill."""
+    moving = reference.velocity_m_s != 0.0
+    starts = np.flatnonzero(moving & ~np.concatenate([[False], moving[:-1]]))
+    return np.union1d(starts, reversals(reference))
 
 
 def score(result: RunResult, c: ScenarioConfig) -> dict[str, float | None]:

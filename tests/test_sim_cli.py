@@ -41,10 +41,26 @@ def test_simulate_writes_scores_for_every_strategy(tmp_path: Path) -> None:
     assert plot.stat().st_size > 0
 
 
+def test_two_axis_circle_scores_the_contour(tmp_path: Path) -> None:
+    out = tmp_path / "scores.json"
+    plot = tmp_path / "reversal.png"
+    config = _config(tmp_path, SHORT + 'circle_axis = "xy"\n')
+    assert main(["simulate", str(config), "--json", str(out), "--plot", str(plot)]) == 0
+    report = json.loads(out.read_text())
+    assert report["scenario"]["axes"] == 2
+    for scores in report["strategies"].values():
+        circ = scores["circularity"]
+        assert set(circ) == {"peak_quadrant_error_m", "rms_radial_error_m"}
+        assert all(v > 0 for v in circ.values())
+    assert (tmp_path / "reversal_circularity.png").stat().st_size > 0
+
+
 @pytest.mark.parametrize(
     ("extra", "names"),
     [
         ('[scenario]\ntrajectory = "square"\n', "scenario.trajectory"),
+        ('[scenario]\ncircle_axis = "xyz"\n', "scenario.circle_axis"),
+        ("[scenario]\ncircle_axis = 2\n", "scenario.circle_axis"),
         ("[scenario]\nrevolutions = 1e6\n", "lasts"),
         ("[scenario]\nfeed_m_s = 2.0\nradius_m = 0.001\n", "plant.current_limit_A"),
         ("[controller]\nservo_rate_Hz = -4000\n", "controller.servo_rate_Hz"),

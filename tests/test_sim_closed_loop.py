@@ -12,12 +12,16 @@ import pytest
 from gms_comp.gms import GmsParams, GmsStream
 from gms_comp.table import Fidelity, GmsTable
 from sim.link import DirectLink
+from sim.plant import ZeroFriction
 from sim.scenarios import (
     Loop,
     Physics,
     Scenario,
+    axis_scenarios,
     build_observer,
+    circularity,
     load_scenario,
+    radial_error,
     run_strategies,
     score,
 )
@@ -89,6 +93,35 @@ def test_compensation_lowers_the_reversal_error() -> None:
     assert gms["peak_reversal_error_m"] is not None
     assert gms["peak_reversal_error_m"] < none["peak_reversal_error_m"] / 3
     assert gms["rms_error_m"] < none["rms_error_m"]  # type: ignore[operator]
+
+
+def _two_axis_runs(physics: Physics, strategies: list[str]) -> list[dict[str, Any]]:
+    """Both axes of a short two-axis circle, each run under ``strategies``."""
+    axes = axis_scenarios(_scenario(circle_axis="xy"))
+    assert [a.scenario.circle_axis for a in axes] == ["x", "y"]
+    return [run_strategies(a, strategies, physics) for a in axes]
+
+
+def test_frictionless_two_axis_circle_keeps_its_radius() -> None:
+    x, y = (axis["none"] for axis in _two_axis_runs(Physics(lambda b: ZeroFriction()), ["none"]))
+    assert not np.allclose(x.reference.position_m, y.reference.position_m)
+    radial = radial_error(x, y, 0.01)
+    # Triangle inequality: the radial error never exceeds the contour's following error.
+    assert np.all(np.abs(radial) <= np.hypot(x.error_m, y.error_m) + 1e-15)
+    # Two identical linear axes on a circle lag along the path, not across it: without
+    # friction the radial error is a small part of the single-axis following error.
+    following = max(np.max(np.abs(x.error_m)), np.max(np.abs(y.error_m)))
+    assert np.max(np.abs(radial)) < 0.25 * following
+
+
+def test_gms_lowers_the_quadrant_error_of_the_contour() -> None:
+    x, y = _two_axis_runs(_physics(), ["none", "gms"])
+    c = _scenario().scenario
+    none, gms = (circularity(x[k], y[k], c) for k in ("none", "gms"))
+    assert none["peak_quadrant_error_m"] is not None
+    assert gms["peak_quadrant_error_m"] is not None
+    assert gms["peak_quadrant_error_m"] < none["peak_quadrant_error_m"] / 3
+    assert gms["rms_radial_error_m"] < none["rms_radial_error_m"]  # type: ignore[operator]
 
 
 def test_feedforward_respects_the_compensator_limits() -> None:

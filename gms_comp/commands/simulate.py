@@ -11,6 +11,12 @@ current quantized to the frame's step (``cia402``: 1 per mille of
 ``rated_current_A``; ``e2e``: the DBC's scale), saturated at
 ``can.max_current_A``. ``scenario.transport_delay_cycles`` is not added: the
 bus is the transport. tests/test_sim_via_can.py checks that equivalence.
+
+A two-axis circle (``[scenario] circle_axis = "xy"``) runs both axes, each on its
+own plant, controller, truth and compensator; the per-strategy scores stay those
+of the x axis, and ``strategies.<name>.circularity`` scores the contour (radial
+error); ``--plot`` then also writes ``<PNG stem>_circularity<suffix>``, the polar
+plot of the radial error.
 """
 
 from __future__ import annotations
@@ -23,9 +29,19 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from sim.closed_loop import RunResult
 from sim.link import DirectLink, FeedforwardLink
-from sim.scenarios import Scenario, load_scenario, run_strategies, score
+from sim.scenarios import (
+    Scenario,
+    axis_scenarios,
+    circularity,
+    load_scenario,
+    radial_error,
+    run_strategies,
+    score,
+)
 from sim.trajectories import reversals
 
 from ..errors import ScenarioError
@@ -83,24 +99,32 @@ def run(args: argparse.Namespace) -> int:
     s = load_scenario(args.config)
     started = time.perf_counter()
     with _links(s, args.via_can) as link:
-        results = run_strategies(s, link=link)
+        runs = [run_strategies(axis, link=link) for axis in axis_scenarios(s)]
     elapsed_s = time.perf_counter() - started
+    results = runs[0]
     scores = {name: score(r, s.scenario) for name, r in results.items()}
-    simulated_s = sum(r.reference.duration_s for r in results.values())
+    strategies: dict[str, dict[str, Any]] = {name: dict(sc) for name, sc in scores.items()}
+    contour = _contours(runs, s)
+    for name, circ in contour.items():
+        strategies[name]["circularity"] = circ
+    simulated_s = sum(r.reference.duration_s for axis in runs for r in axis.values())
     report = {
         "config": s.path,
         "scenario": {
             "trajectory": s.scenario.trajectory,
+            "axes": len(runs),
             "duration_s": next(iter(results.values())).reference.duration_s,
             "servo_rate_Hz": s.controller.servo_rate_Hz,
             "transport_delay_cycles": s.scenario.transport_delay_cycles,
             "via_can": bool(args.via_can),
         },
-        "strategies": scores,
+        "strategies": strategies,
         "gms_peak_reversal_reduction": _reductions(scores),
         "realtime_factor": simulated_s / elapsed_s,
     }
     print(_table(scores))
+    if contour:
+        print(_circularity_table(contour))
     print(
         f"simulated {simulated_s:.1f} s in {elapsed_s:.1f} s "
         f"({report['realtime_factor']:.0f}x real time, set-up included)"
@@ -109,7 +133,19 @@ def run(args: argparse.Namespace) -> int:
         args.json.write_text(json.dumps(report, indent=2) + "\n")
     if args.plot:
         _plot(results, s, args.plot)
+        if contour:
+            _plot_circularity(
+                runs, s, args.plot.with_name(f"{args.plot.stem}_circularity{args.plot.suffix}")
+            )
     return 0
+
+
+def _contours(runs: list[dict[str, RunResult]], s: Scenario) -> dict[str, dict[str, float | None]]:
+    """Circularity scores per strategy of a two-axis run (empty for one axis)."""
+    if len(runs) != 2:
+        return {}
+    x, y = runs
+    return {name: circularity(x[name], y[name], s.scenario) for name in x}
 
 
 def _reductions(scores: dict[str, dict[str, float | None]]) -> dict[str, float | None]:
@@ -125,17 +161,58 @@ def _reductions(scores: dict[str, dict[str, float | None]]) -> dict[str, float |
 
 def _table(scores: dict[str, dict[str, float | None]]) -> str:
     """Scores in nanometres, one strategy per line."""
-
-    def nm(value: float | None) -> str:
-        return "-" if value is None else f"{value * 1e9:.1f}"
-
     lines = [f"{'strategy':<16}{'peak reversal nm':>18}{'rms nm':>10}{'peak stop nm':>14}"]
     for name, sc in scores.items():
         lines.append(
-            f"{name:<16}{nm(sc['peak_reversal_error_m']):>18}{nm(sc['rms_error_m']):>10}"
-            f"{nm(sc['peak_stop_error_m']):>14}"
+            f"{name:<16}{_nm(sc['peak_reversal_error_m']):>18}{_nm(sc['rms_error_m']):>10}"
+            f"{_nm(sc['peak_stop_error_m']):>14}"
         )
     return "\n".join(lines)
+
+
+def _nm(value: float | None) -> str:
+    """A length in nanometres for the tables, ``-`` for none."""
+    return "-" if value is None else f"{value * 1e9:.1f}"
+
+
+def _circularity_table(contour: dict[str, dict[str, float | None]]) -> str:
+    """Contour scores in nanometres, one strategy per line."""
+    lines = [f"{'circularity':<16}{'peak quadrant nm':>18}{'rms radial nm':>15}"]
+    for name, circ in contour.items():
+        peak, rms = circ["peak_quadrant_error_m"], circ["rms_radial_error_m"]
+        lines.append(f"{name:<16}{_nm(peak):>18}{_nm(rms):>15}")
+    return "\n".join(lines)
+
+
+def _plot_circularity(runs: list[dict[str, RunResult]], s: Scenario, path: Path) -> None:
+    """The classic circularity plot: radial error against the angle on the circle,
+    magnified about a zero-error circle (the polar origin sits below zero)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.projections.polar import PolarAxes
+
+    x, y = runs
+    radius_m = s.scenario.radius_m
+    fig, ax = plt.subplots(figsize=(6, 6), subplot_kw={"projection": "polar"})
+    assert isinstance(ax, PolarAxes)
+    span_nm = 0.0
+    for name, rx in x.items():
+        ry = y[name]
+        angle = np.arctan2(ry.reference.position_m - radius_m, rx.reference.position_m)
+        radial_nm = radial_error(rx, ry, radius_m) * 1e9
+        span_nm = max(span_nm, float(np.max(np.abs(radial_nm))))
+        ax.plot(angle, radial_nm, label=name, lw=0.9)
+    # Zero error is drawn as a circle of radius 2 span, the errors (+-span) around it:
+    # nanometres magnified to a visible fraction of the circle.
+    ax.set_rorigin(-2 * span_nm)
+    ax.set_rlim(-span_nm, span_nm)
+    ax.set_title(f"radial error [nm] on a {radius_m * 1e3:g} mm circle (zero: the circle)")
+    ax.legend(loc="lower left", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
 
 
 def _plot(results: dict[str, RunResult], s: Scenario, path: Path) -> None:
