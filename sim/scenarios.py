@@ -229,7 +229,8 @@ def run_strategies(
 
 def axis_scenarios(s: Scenario) -> tuple[Scenario, ...]:
     """One scenario per simulated axis: ``s`` itself, or for a two-axis circle
-    (``circle_axis = "xy"``) its x and its y axis, identical but for the reference.
+    (``circle_axis = "xy"``) its x and its y axis, identical but for the reference and
+    the encoder noise.
 
     The axes are mechanically independent, so each runs on its own plant, controller,
     friction truth and compensator, and a contour is two single-axis runs.
@@ -237,9 +238,15 @@ def axis_scenarios(s: Scenario) -> tuple[Scenario, ...]:
     c = s.scenario
     if c.trajectory != "circle" or c.circle_axis != "xy":
         return (s,)
+    # Each axis has its own encoder: the y axis draws its own noise sequence.
+    axes: tuple[tuple[int, Literal["x", "y"]], ...] = ((0, "x"), (1, "y"))
     return tuple(
-        dataclasses.replace(s, scenario=dataclasses.replace(c, circle_axis=axis))
-        for axis in ("x", "y")
+        dataclasses.replace(
+            s,
+            scenario=dataclasses.replace(c, circle_axis=axis),
+            plant=dataclasses.replace(s.plant, noise_seed=s.plant.noise_seed + offset),
+        )
+        for offset, axis in axes
     )
 
 
