@@ -92,7 +92,8 @@ class E2eCodec:
             raise BusError(f"{path}: signal FfCommand.Current needs a minimum and a maximum")
         self.scale_A = float(current.scale)
         self.raw_range = (
-            round(current.minimum / self.scale_A), round(current.maximum / self.scale_A)
+            round(current.minimum / self.scale_A),
+            round(current.maximum / self.scale_A),
         )
         self.limit_raw = min(-self.raw_range[0], self.raw_range[1])
 

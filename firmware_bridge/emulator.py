@@ -110,9 +110,11 @@ class DriveEmulator:
             self.e2e.fresh_data = None
             out = self.e2e.tick()
             if self.cycle % self.cfg.status_every_cycles == 0:
-                self.bus.send(self.e2e.codec.status_frame(
-                    self.cycle, out, self.e2e.state, self.counts.total_rejected
-                ))
+                self.bus.send(
+                    self.e2e.codec.status_frame(
+                        self.cycle, out, self.e2e.state, self.counts.total_rejected
+                    )
+                )
         else:
             assert self.cia402 is not None
             out = self.cia402.tick(now_s)
@@ -192,8 +194,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         signal.signal(signum, lambda *_: stop.set())
     try:
         cfg = load_can_config(args.config)
-        overrides = {k: v for k in ("profile", "interface", "channel")
-                     if (v := getattr(args, k)) is not None}
+        overrides = {
+            k: v for k in ("profile", "interface", "channel") if (v := getattr(args, k)) is not None
+        }
         cfg = replace(cfg, **overrides)
         with ExitStack() as stack:
             drive = DriveEmulator(cfg, stack.enter_context(open_bus(cfg)))
@@ -220,16 +223,24 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m firmware_bridge.emulator",
-                                description="The drive emulator as a node of a CAN bus.")
+    p = argparse.ArgumentParser(
+        prog="python -m firmware_bridge.emulator",
+        description="The drive emulator as a node of a CAN bus.",
+    )
     p.add_argument("config", nargs="?", type=Path, help="config file (default: Table 1)")
     p.add_argument("--profile", choices=("cia402", "e2e"), help="override [can] profile")
     p.add_argument("--interface", help="python-can interface")
     p.add_argument("--channel", help="python-can channel")
-    p.add_argument("--duration", type=float, default=60.0, metavar="S",
-                   help="stop after S seconds at the latest (60)")
-    p.add_argument("--nc-sync", action="store_true",
-                   help="also produce SYNC, as the NC would (cia402)")
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=60.0,
+        metavar="S",
+        help="stop after S seconds at the latest (60)",
+    )
+    p.add_argument(
+        "--nc-sync", action="store_true", help="also produce SYNC, as the NC would (cia402)"
+    )
     return p
 
 

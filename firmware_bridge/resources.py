@@ -18,6 +18,8 @@ def packaged_path(name: str) -> Path:
     """Path of the data file or folder ``name`` inside the installed package."""
     resource = resources.files(__package__).joinpath(name)
     if not isinstance(resource, Path) or not resource.exists():
-        raise BusError(f"firmware_bridge: packaged file {name!r} not found in the installation "
-                       f"({resource}); reinstall the package from files, not a zip")
+        raise BusError(
+            f"firmware_bridge: packaged file {name!r} not found in the installation "
+            f"({resource}); reinstall the package from files, not a zip"
+        )
     return resource

@@ -43,8 +43,9 @@ def open_bus(cfg: CanConfig) -> can.BusABC:
     try:
         return can.Bus(interface=cfg.interface, channel=cfg.channel, bitrate=cfg.bitrate_bit_s)
     except (can.CanError, ImportError, OSError, ValueError) as err:
-        raise BusError(f"cannot open CAN interface {cfg.interface!r} "
-                       f"channel {cfg.channel!r}: {err}") from err
+        raise BusError(
+            f"cannot open CAN interface {cfg.interface!r} channel {cfg.channel!r}: {err}"
+        ) from err
 
 
 class Rig:
@@ -53,8 +54,12 @@ class Rig:
     CAN channel."""
 
     def __init__(
-        self, cfg: CanConfig, faults: Sequence[Fault] = (), seed: int = 0,
-        log_path: str | Path | None = None, builtin_drive: bool = True,
+        self,
+        cfg: CanConfig,
+        faults: Sequence[Fault] = (),
+        seed: int = 0,
+        log_path: str | Path | None = None,
+        builtin_drive: bool = True,
     ) -> None:
         self.cfg = cfg
         self.tx = make_tx(cfg)
@@ -135,8 +140,15 @@ class Rig:
         return "nc" if self.cfg.follows_sync else "compensator"
 
     def _drive_report(self) -> dict[str, Any]:
-        keys = ("frames_applied", "frames_rejected", "frames_resync", "stale_or_corrupt_applied",
-                "max_applied_current_A", "drive_state", "emcy")
+        keys = (
+            "frames_applied",
+            "frames_rejected",
+            "frames_resync",
+            "stale_or_corrupt_applied",
+            "max_applied_current_A",
+            "drive_state",
+            "emcy",
+        )
         if self.emulator is None:
             return dict.fromkeys(keys)
         # a follower's RPDO waits for the next SYNC: one cycle more on the way
@@ -175,8 +187,11 @@ def run_stream(
         # the drive and the audit log run on the bus timestamps' clock
         rig.streamer.send_clock = time.time
         stop = threading.Event()
-        devices = [threading.Thread(target=device.run, args=(stop, time.time), daemon=True)
-                   for device in (rig.emulator, rig.nc_sync) if device is not None]
+        devices = [
+            threading.Thread(target=device.run, args=(stop, time.time), daemon=True)
+            for device in (rig.emulator, rig.nc_sync)
+            if device is not None
+        ]
         for device in devices:
             device.start()
         try:
@@ -249,7 +264,10 @@ def _control_loop(
 
 
 def _follower_loop(
-    rig: Rig, tx: Cia402Tx, source: FeedforwardSource, duration_s: float,
+    rig: Rig,
+    tx: Cia402Tx,
+    source: FeedforwardSource,
+    duration_s: float,
     clock: Callable[[], float],
 ) -> dict[str, Any]:
     """SYNC follower: one RPDO in answer to each SYNC of the NC, applied at the next.

@@ -55,8 +55,10 @@ class E2eTx:
 
     def traffic(self) -> list[tuple[int, float]]:
         rate = 1.0 / self.cfg.cycle_period_s
-        return [(self.codec.command.length, rate),
-                (self.codec.status.length, rate / self.cfg.status_every_cycles)]
+        return [
+            (self.codec.command.length, rate),
+            (self.codec.status.length, rate / self.cfg.status_every_cycles),
+        ]
 
     def on_reply(self, msg: can.Message) -> None:
         # kept raw: decoding waits until someone asks, off the control loop's time

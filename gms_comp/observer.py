@@ -55,8 +55,7 @@ def physical_extensions(table: GmsTable) -> list[Effect]:
     flagged ``measurement_only``: sensor filter, drive lag, inertia) a compensator must
     not add."""
     built = (
-        effect_from_dict({"effect": e.effect, "parameters": e.parameters})
-        for e in table.extensions
+        effect_from_dict({"effect": e.effect, "parameters": e.parameters}) for e in table.extensions
     )
     return [e for e in built if not e.measurement_only]
 

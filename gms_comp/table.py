@@ -77,6 +77,7 @@ class LoadFamily:
 
     def elements_at(self, normal_load_N: float) -> tuple[FloatArray, FloatArray]:
         """k_i and W_i linearly interpolated in load (clamped to the grid's ends)."""
+
         def interp(rows: FloatArray) -> FloatArray:
             return np.array([np.interp(normal_load_N, self.normal_load_N, c) for c in rows.T])
 

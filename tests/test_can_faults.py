@@ -26,8 +26,12 @@ _channels = itertools.count()
 
 
 def config(profile: str) -> CanConfig:
-    return replace(CanConfig(), profile=profile, max_current_A=1.0,  # type: ignore[arg-type]
-                   channel=f"test-faults-{next(_channels)}")
+    return replace(
+        CanConfig(),
+        profile=profile,  # type: ignore[arg-type]
+        max_current_A=1.0,
+        channel=f"test-faults-{next(_channels)}",
+    )
 
 
 def wave(k: int) -> float:
@@ -63,9 +67,13 @@ def test_clean_link_applies_every_frame_quantised(profile: str) -> None:
 @pytest.mark.parametrize("profile", PROFILES)
 @pytest.mark.parametrize(
     ("spec", "reasons"),
-    [("duplicate:0.1@0-0.35", ("duplicate",)), ("corrupt:0.1@0-0.35", ("corrupt",)),
-     ("reorder:0.1@0-0.35", ("out_of_order",)),
-     ("delay:0.1@0-0.35", ("out_of_order", "stale")), ("drop:0.2@0-0.35", ())],
+    [
+        ("duplicate:0.1@0-0.35", ("duplicate",)),
+        ("corrupt:0.1@0-0.35", ("corrupt",)),
+        ("reorder:0.1@0-0.35", ("out_of_order",)),
+        ("delay:0.1@0-0.35", ("out_of_order", "stale")),
+        ("drop:0.2@0-0.35", ()),
+    ],
 )
 def test_frame_faults_are_rejected_and_counted(
     profile: str, spec: str, reasons: tuple[str, ...]
@@ -91,8 +99,10 @@ def test_link_loss_falls_back_to_zero_in_time_and_recovers(profile: str, spec: s
     zero_by = lost + cfg.timeout_cycles + cfg.ramp_cycles  # rx_timeout + ramp after the last frame
     assert all(a == 0.0 for a in applied[zero_by:back])
     ramp_step_A = cfg.max_current_A / cfg.ramp_cycles
-    assert all(abs(b - a) <= ramp_step_A + 1e-3 for a, b in
-               zip(applied[lost - 1:zero_by], applied[lost:zero_by], strict=False))
+    assert all(
+        abs(b - a) <= ramp_step_A + 1e-3
+        for a, b in zip(applied[lost - 1 : zero_by], applied[lost:zero_by], strict=False)
+    )
     recovered = back + 2  # e2e: one frame to resynchronise the counter
     for k in range(recovered, CYCLES):
         assert applied[k] == pytest.approx(max(-1.0, min(1.0, wave(k))), abs=1e-3)

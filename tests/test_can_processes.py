@@ -28,8 +28,10 @@ PORT = 43113  # python-can's default: the CLI has no port option
 def multicast_works() -> str | None:
     """None if a frame crosses the group between two buses, else why not."""
     try:
-        with can.Bus(interface="udp_multicast", channel=GROUP, port=PORT) as a, \
-                can.Bus(interface="udp_multicast", channel=GROUP, port=PORT) as b:
+        with (
+            can.Bus(interface="udp_multicast", channel=GROUP, port=PORT) as a,
+            can.Bus(interface="udp_multicast", channel=GROUP, port=PORT) as b,
+        ):
             a.send(can.Message(arbitration_id=0x7FF, data=b"ping", is_extended_id=False))
             while (msg := b.recv(timeout=1.0)) is not None:
                 if msg.arbitration_id == 0x7FF:
@@ -42,8 +44,19 @@ def multicast_works() -> str | None:
 @contextmanager
 def emulator_process(config: Path, *extra: str) -> Iterator[dict[str, Any]]:
     """The emulator as a separate process; yields its final status once it has ended."""
-    cmd = [sys.executable, "-m", "firmware_bridge.emulator", str(config),
-           "--interface", "udp_multicast", "--channel", GROUP, "--duration", "30", *extra]
+    cmd = [
+        sys.executable,
+        "-m",
+        "firmware_bridge.emulator",
+        str(config),
+        "--interface",
+        "udp_multicast",
+        "--channel",
+        GROUP,
+        "--duration",
+        "30",
+        *extra,
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     status: dict[str, Any] = {}
     try:
@@ -74,13 +87,28 @@ def needs_multicast() -> None:
 @pytest.mark.parametrize("sync_master", [True, False], ids=["compensator_sync", "nc_sync"])
 def test_stream_to_an_emulator_in_another_process(tmp_path: Path, sync_master: bool) -> None:
     config = tmp_path / "udp.toml"
-    config.write_text(default_config_path().read_text()
-                      + f"\n[can]\nsync_master = {str(sync_master).lower()}\n")
+    config.write_text(
+        default_config_path().read_text() + f"\n[can]\nsync_master = {str(sync_master).lower()}\n"
+    )
     report_path, log_path = tmp_path / "report.json", tmp_path / "frames.asc"
     with emulator_process(config, *([] if sync_master else ["--nc-sync"])) as drive:
-        code = main(["stream", str(config), "--interface", "udp_multicast", "--channel", GROUP,
-                     "--external-drive", "--duration", "1", "--json", str(report_path),
-                     "--log", str(log_path)])
+        code = main(
+            [
+                "stream",
+                str(config),
+                "--interface",
+                "udp_multicast",
+                "--channel",
+                GROUP,
+                "--external-drive",
+                "--duration",
+                "1",
+                "--json",
+                str(report_path),
+                "--log",
+                str(log_path),
+            ]
+        )
     assert code == 0
     report = json.loads(report_path.read_text())
     assert report["drive"] == "external" and report["frames_applied"] is None

@@ -12,14 +12,33 @@ import pytest
 from gms_comp.cli import main
 from gms_comp.config import default_config_path
 
-KEYS = {"frames_sent", "frames_applied", "frames_rejected", "stale_or_corrupt_applied",
-        "late_cycles", "max_lateness_s", "loop_time_p99_s", "bus_load", "max_applied_current_A"}
+KEYS = {
+    "frames_sent",
+    "frames_applied",
+    "frames_rejected",
+    "stale_or_corrupt_applied",
+    "late_cycles",
+    "max_lateness_s",
+    "loop_time_p99_s",
+    "bus_load",
+    "max_applied_current_A",
+}
 
 
 def stream(tmp_path: Path, *args: str) -> tuple[int, dict[str, Any]]:
     out = tmp_path / "report.json"
-    code = main(["stream", "--duration", "0.2", "--channel", f"cli-{tmp_path.name}",
-                 "--json", str(out), *args])
+    code = main(
+        [
+            "stream",
+            "--duration",
+            "0.2",
+            "--channel",
+            f"cli-{tmp_path.name}",
+            "--json",
+            str(out),
+            *args,
+        ]
+    )
     return code, json.loads(out.read_text())
 
 
@@ -34,8 +53,17 @@ def test_stream_reports_all_keys_and_applies_nothing_unsafe(tmp_path: Path, prof
 
 
 def test_stream_with_faults_counts_rejections(tmp_path: Path) -> None:
-    code, report = stream(tmp_path, "--profile", "e2e", "--fault", "corrupt:0.2",
-                          "--fault", "duplicate:0.1", "--fault", "stall@0.05-0.08")
+    code, report = stream(
+        tmp_path,
+        "--profile",
+        "e2e",
+        "--fault",
+        "corrupt:0.2",
+        "--fault",
+        "duplicate:0.1",
+        "--fault",
+        "stall@0.05-0.08",
+    )
     assert code == 0
     rejected = report["frames_rejected"]
     assert isinstance(rejected, dict) and rejected["corrupt"] > 0 and rejected["duplicate"] > 0
@@ -57,10 +85,12 @@ def test_bad_fault_spec_is_one_line_and_exit_2(capsys: pytest.CaptureFixture[str
     assert "fault spec" in err and err.count("\n") == 1
 
 
-def test_bus_load_over_70_percent_is_refused(tmp_path: Path,
-                                             capsys: pytest.CaptureFixture[str]) -> None:
+def test_bus_load_over_70_percent_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     cfg = tmp_path / "fast.toml"  # 2 frames x 5 kHz x 135 bit = 135 % of 1 Mbit/s
-    cfg.write_text(default_config_path().read_text()
-                   + "\n[can]\nprofile = 'e2e'\ncycle_period_s = 2e-4\n")
+    cfg.write_text(
+        default_config_path().read_text() + "\n[can]\nprofile = 'e2e'\ncycle_period_s = 2e-4\n"
+    )
     assert main(["stream", str(cfg), "--duration", "0.1"]) == 2
     assert "bus load" in capsys.readouterr().err

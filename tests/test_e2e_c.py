@@ -44,16 +44,41 @@ class CConfig(ctypes.Structure):
 def lib(tmp_path_factory: pytest.TempPathFactory) -> ctypes.CDLL:
     out = tmp_path_factory.mktemp("ffc")
     subprocess.run(
-        [sys.executable, "-m", "cantools", "generate_c_source", str(default_dbc_path()),
-         "-o", str(out)],
-        check=True, capture_output=True,
+        [
+            sys.executable,
+            "-m",
+            "cantools",
+            "generate_c_source",
+            str(default_dbc_path()),
+            "-o",
+            str(out),
+        ],
+        check=True,
+        capture_output=True,
     )
     so = out / "libff.so"
     subprocess.run(
-        ["gcc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC",
-         "-I", str(out), "-I", str(C_DIR), str(out / "gms_ff.c"), str(C_DIR / "ff_handler.c"),
-         "-o", str(so)],
-        check=True, capture_output=True, text=True,
+        [
+            "gcc",
+            "-std=c99",
+            "-O2",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            "-shared",
+            "-fPIC",
+            "-I",
+            str(out),
+            "-I",
+            str(C_DIR),
+            str(out / "gms_ff.c"),
+            str(C_DIR / "ff_handler.c"),
+            "-o",
+            str(so),
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
     )
     lib = ctypes.CDLL(str(so))
     lib.ff_handler_size.restype = ctypes.c_size_t
@@ -133,13 +158,22 @@ def test_c_and_python_agree_on_fault_vectors(lib: ctypes.CDLL, seed: int) -> Non
     c_out, py_out = run_both(lib, vectors(seed))
     assert c_out == py_out
     assert {v for v in py_out if isinstance(v, Verdict)} >= {
-        Verdict.ACCEPTED, Verdict.CORRUPT, Verdict.DUPLICATE, Verdict.OUT_OF_ORDER
+        Verdict.ACCEPTED,
+        Verdict.CORRUPT,
+        Verdict.DUPLICATE,
+        Verdict.OUT_OF_ORDER,
     }
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(st.one_of(st.just(("tick", b"")), st.binary(min_size=0, max_size=9).map(
-    lambda b: ("frame", b))), max_size=60))
+@given(
+    st.lists(
+        st.one_of(
+            st.just(("tick", b"")), st.binary(min_size=0, max_size=9).map(lambda b: ("frame", b))
+        ),
+        max_size=60,
+    )
+)
 def test_c_and_python_agree_on_arbitrary_bytes(lib: ctypes.CDLL, events: list[Event]) -> None:
     c_out, py_out = run_both(lib, events)
     assert c_out == py_out

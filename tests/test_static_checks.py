@@ -22,6 +22,12 @@ def test_ruff_is_clean() -> None:
     assert result.returncode == 0, result.stdout + result.stderr
 
 
+@pytest.mark.skipif(shutil.which("ruff") is None, reason="ruff is not installed")
+def test_ruff_format_is_applied() -> None:
+    result = _run(["ruff", "format", "--check", "--no-cache", "."])
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
 def test_mypy_is_clean() -> None:
     pytest.importorskip("mypy", reason="mypy is not installed")
     result = _run([sys.executable, "-m", "mypy"])
