@@ -127,6 +127,7 @@ class Rig:
             "sync_source": self._sync_source(),
             "frames_sent": self.streamer.frames_sent,
             "send_errors": self.streamer.send_errors,
+            "non_finite_feedforward": self.streamer.source_faults,
             "faults_injected": dict(self.faulty.injected),
             "bus_load": self.bus_load,
         }

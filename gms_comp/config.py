@@ -39,7 +39,6 @@ KNOWN_SECTIONS = frozenset(
         "compensator",  # observer and feedforward (runtime)
         "can",  # CAN transport (firmware_bridge)
         "diagnosis",  # measured-data analysis
-        "sweep",  # parameter sweeps (scale-out)
     }
 )
 

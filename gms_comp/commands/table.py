@@ -38,7 +38,8 @@ def register(subparsers: Any) -> None:
         help="reduce the ball model to a GMS table",
         description=(
             "Fit N Maxwell-slip elements to the configured ball set's transient friction "
-            "(non-negative least squares) and write the table as JSON, with its fidelity "
+            "(bounded least squares on its virgin curve and a training path) and write the "
+            "table as JSON, with its fidelity "
             "over the seed's Fig. 7 profile and a random multi-amplitude path."
         ),
     )

@@ -95,11 +95,6 @@ def cross_test(fit: IdimResult, trace: Trace) -> IdimResult:
     )
 
 
-def predict(fit: IdimResult, kin: Kinematics) -> FloatArray:
-    """The reference model's force at full rate."""
-    return regressors(kin, fit.names == ASYMMETRIC_NAMES) @ fit.theta
-
-
 def _scored(asymmetric: bool, theta: FloatArray, xd: FloatArray, yd: FloatArray) -> IdimResult:
     e = yd - xd @ theta
     std = np.std(e, ddof=1) * np.sqrt(np.diag(np.linalg.inv(xd.T @ xd)))
