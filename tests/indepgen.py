@@ -1,0 +1,477 @@
+"""An independent generator of measured-like friction traces, for blind tests of the diagnosis.
+
+Written from the specs only (``measured-data.md``'s catalogue, ``physics.md``, the seed paper)
+and sharing no code with ``gms_comp`` or ``sim``: numpy/scipy only, its own play operator,
+its own trajectories (``indepmotion``), its own nominal ranges.
+
+Truth
+-----
+A plain Maxwell-slip model of N = 3-12 elements, break-away displacements spread
+log-uniformly over 0.2-30 um, sliding level 3-40 N. The element limits rise with speed from
+the stick level to C_v (1.0-1.3) times it, smoothly, over a transition velocity v_t of
+0.1-0.8 mm/s: limit factor 1 + (C_v - 1) q / (1 + q), q = (|v| / v_t)^2. This is the seed's
+slip level above stick and belongs to the baseline (a trace with only it is ``none``).
+Friction is positive when the carriage moves in +x (the force needed to push it).
+
+Measurement: white force noise of 0.5-3 % of the sliding level, sample rate 1-5 kHz,
+position quantised to 1-50 nm. Effects (the catalogue's forms and parameter names) are drawn
+at sizes that matter for compensation (about 10-30 % of the sliding force or the equivalent).
+
+Uncatalogued effects (the diagnosis must answer ``unknown``); each one is odd in the
+direction of motion (it acts on the friction level), so neither ``offset`` nor
+``position_ripple`` (both even in direction) can carry it, and it is not a function of
+speed, dwell, reversal distance or acceleration, so no other entry can either:
+
+- ``unknown_stroke_profile``: the element limits grow as 1 + beta u^2 with the distance u
+  from the stroke centre (a crowned rail, a preload that rises towards the ends).
+- ``unknown_bumps``: the limits rise by a Gaussian bump at 2-4 discrete positions (dirt,
+  a damaged raceway spot): localised in position, not periodic.
+- ``unknown_time_modulation``: the limits are modulated periodically in time at
+  0.05-0.3 Hz (a periodic load or temperature cycle), unrelated to position or motion;
+  ``drift`` is monotonic in time and cannot follow it.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from indepmotion import trajectory
+from scipy import signal
+
+CATALOGUE = (
+    "viscous",
+    "stribeck",
+    "dwell_time",
+    "position_ripple",
+    "offset",
+    "reversal_transient",
+    "drift",
+    "inertia",
+    "sensor_lowpass",
+)
+MAIN_PARAMETER = {
+    "viscous": "c_Ns_per_m",
+    "stribeck": "ratio",
+    "dwell_time": "gamma",
+    "position_ripple": "amplitude_N",
+    "offset": "offset_N",
+    "reversal_transient": "amplitude_N",
+    "drift": "kappa",
+    "inertia": "mass_kg",
+    "sensor_lowpass": "cutoff_Hz",
+}
+UNKNOWN = ("unknown_stroke_profile", "unknown_bumps", "unknown_time_modulation")
+# (larger, smaller): the larger one's force contribution is three times the smaller one's
+PAIRS = (
+    ("viscous", "offset"),
+    ("inertia", "position_ripple"),
+    ("position_ripple", "viscous"),
+    ("offset", "stribeck"),
+    ("drift", "reversal_transient"),
+)
+CASES = ("none", *CATALOGUE, *UNKNOWN, *(f"pair_{a}_{b}" for a, b in PAIRS))
+PAIR_SIZE_RATIO = 3.0
+
+Effect = tuple[str, dict[str, float]]
+
+
+@dataclass(frozen=True, eq=False)
+class Generated:
+    """One generated trace with its truth.
+
+    Attributes
+    ----------
+    case, seed : str, int
+        What was asked for.
+    time_s, position_m, force_N : numpy.ndarray
+        The measured trace (quantised position, noisy force).
+    effects : tuple of (name, parameters)
+        The hidden effects, largest first, spec parameter names, SI units.
+    expected : str
+        The name a correct diagnosis gives first: a catalogue name, ``none`` or ``unknown``.
+    C_v, transition_velocity_m_per_s : float
+        The baseline's slip level above stick and the speed over which it is reached.
+    n_elements : int
+        Maxwell-slip elements of the truth.
+    sliding_force_N, noise_N, sample_rate_Hz, quantisation_m : float
+        Sliding level at speed, force noise standard deviation, sampling, encoder step.
+    """
+
+    case: str
+    seed: int
+    time_s: np.ndarray
+    position_m: np.ndarray
+    force_N: np.ndarray
+    effects: tuple[Effect, ...]
+    expected: str
+    C_v: float
+    transition_velocity_m_per_s: float
+    n_elements: int
+    sliding_force_N: float
+    noise_N: float
+    sample_rate_Hz: float
+    quantisation_m: float
+
+
+@dataclass(frozen=True, eq=False)
+class Truth:
+    """The baseline friction and the motion it is evaluated on (SI units)."""
+
+    stiffness_N_per_m: np.ndarray
+    breakaway_m: np.ndarray
+    C_v: float
+    transition_velocity_m_per_s: float
+    sample_rate_Hz: float
+    time_s: np.ndarray
+    position_m: np.ndarray
+    velocity_m_s: np.ndarray
+    acceleration_m_s2: np.ndarray
+
+    @property
+    def sliding_force_N(self) -> float:
+        """Steady sliding force well above the transition velocity."""
+        return float(self.C_v * np.sum(self.stiffness_N_per_m * self.breakaway_m))
+
+
+def play_operator(
+    displacement_m: np.ndarray,
+    stiffness_N_per_m: np.ndarray,
+    breakaway_m: np.ndarray,
+    level: np.ndarray,
+    boost_at: np.ndarray | None = None,
+) -> np.ndarray:
+    """Maxwell-slip friction: each element is a spring clipped at its break-away limit.
+
+    Parameters
+    ----------
+    displacement_m : numpy.ndarray
+        Position increment into each sample (the first entry is the step into sample 0).
+    stiffness_N_per_m, breakaway_m : numpy.ndarray
+        Element stiffnesses and break-away displacements (limit = k * breakaway).
+    level : numpy.ndarray
+        Per-sample factor on every element's limit (velocity level, other level effects).
+    boost_at : numpy.ndarray, optional
+        Per-sample break-away gain set on all elements at that sample (values > 1 after a
+        standstill); an element keeps its gain until it slips, then loses it.
+
+    Returns
+    -------
+    numpy.ndarray
+        Friction force per sample, positive when pushing towards +x.
+    """
+    limit0 = breakaway_m.astype(float)
+    spring = np.zeros_like(limit0)
+    gain = np.ones_like(limit0)
+    force = np.empty(displacement_m.size)
+    boosts = np.ones(displacement_m.size) if boost_at is None else boost_at
+    for k in range(displacement_m.size):
+        if k and displacement_m[k] == 0.0 and level[k] == level[k - 1] and boosts[k] == 1.0:
+            force[k] = force[k - 1]  # at rest under a constant limit nothing can change
+            continue
+        if boosts[k] != 1.0:
+            gain[:] = boosts[k]
+        limit = limit0 * level[k]
+        moved = spring + displacement_m[k]
+        slipped = np.abs(moved) > limit * gain
+        if slipped.any():
+            gain[slipped] = 1.0
+            moved[slipped] = np.sign(moved[slipped]) * limit[slipped]
+        spring = moved
+        force[k] = float(stiffness_N_per_m @ spring)
+    return force
+
+
+def velocity_level(speed_m_s: np.ndarray, C_v: float, transition_m_s: float) -> np.ndarray:
+    """The baseline's limit factor: 1 at rest, C_v in sliding, reached smoothly."""
+    q = (speed_m_s / transition_m_s) ** 2
+    return 1.0 + (C_v - 1.0) * q / (1.0 + q)
+
+
+def _standstill_gain(truth: Truth, gamma: float, tau_s: float) -> np.ndarray:
+    """Break-away gain 1 + gamma ln(1 + t_d / tau) at each first sample after a standstill."""
+    moving = truth.velocity_m_s != 0.0
+    gain = np.ones(moving.size)
+    starts = np.flatnonzero(moving[1:] & ~moving[:-1]) + 1
+    stops = np.flatnonzero(~moving[1:] & moving[:-1]) + 1
+    for start in starts:
+        before = stops[stops < start]
+        if before.size:
+            dwell = truth.time_s[start] - truth.time_s[before[-1]]
+            gain[start] = 1.0 + gamma * np.log1p(dwell / tau_s)
+    return gain
+
+
+def _reversal_decay(truth: Truth, length_m: float) -> np.ndarray:
+    """d exp(-s / l): direction held through standstills, s travelled since the last reversal."""
+    step = np.diff(truth.position_m, prepend=truth.position_m[0])
+    direction = np.sign(truth.velocity_m_s)
+    for k in range(1, direction.size):
+        if direction[k] == 0.0:
+            direction[k] = direction[k - 1]
+    out = np.zeros(direction.size)
+    travelled = np.inf
+    for k in range(1, direction.size):
+        if direction[k] != direction[k - 1] and direction[k - 1] != 0.0:
+            travelled = 0.0
+        travelled += abs(step[k])
+        out[k] = direction[k] * np.exp(-travelled / length_m)
+    return out
+
+
+def friction(truth: Truth, effects: tuple[Effect, ...]) -> np.ndarray:
+    """The true force (before sensor noise) of the baseline with ``effects`` added."""
+    named = dict(effects)
+    speed = np.abs(truth.velocity_m_s)
+    level = velocity_level(speed, truth.C_v, truth.transition_velocity_m_per_s)
+    if "stribeck" in named:
+        p = named["stribeck"]
+        level = level * (1.0 + (p["ratio"] - 1.0) * np.exp(-((speed / p["v_s_m_per_s"]) ** 2)))
+    level = level * _unknown_level(truth, named)
+    boost = None
+    if "dwell_time" in named:
+        boost = _standstill_gain(truth, named["dwell_time"]["gamma"], named["dwell_time"]["tau_s"])
+    step = np.diff(truth.position_m, prepend=truth.position_m[0])
+    force = play_operator(step, truth.stiffness_N_per_m, truth.breakaway_m, level, boost)
+    if "drift" in named:
+        p = named["drift"]
+        force = force * (1.0 + p["kappa"] * -np.expm1(-truth.time_s / p["tau_s"]))
+    force = force + _additive(truth, named)
+    if "sensor_lowpass" in named:
+        p = named["sensor_lowpass"]
+        sos = signal.butter(int(p["order"]), p["cutoff_Hz"], fs=truth.sample_rate_Hz, output="sos")
+        force = signal.sosfilt(sos, force)
+    return force
+
+
+def _additive(truth: Truth, named: dict[str, dict[str, float]]) -> np.ndarray:
+    x = truth.position_m
+    out = np.zeros(x.size)
+    if "viscous" in named:
+        out += named["viscous"]["c_Ns_per_m"] * truth.velocity_m_s
+    if "position_ripple" in named:
+        p = named["position_ripple"]
+        out += p["amplitude_N"] * np.sin(2 * np.pi * x / p["wavelength_m"] + p["phase_rad"])
+    if "offset" in named:
+        out += named["offset"]["offset_N"]
+    if "reversal_transient" in named:
+        p = named["reversal_transient"]
+        out += p["amplitude_N"] * _reversal_decay(truth, p["length_m"])
+    if "inertia" in named:
+        out += named["inertia"]["mass_kg"] * truth.acceleration_m_s2
+    return out
+
+
+def _unknown_level(truth: Truth, named: dict[str, dict[str, float]]) -> np.ndarray:
+    x = truth.position_m
+    level = np.ones(x.size)
+    if "unknown_stroke_profile" in named:
+        p = named["unknown_stroke_profile"]
+        level *= 1.0 + p["beta"] * ((x - p["centre_m"]) / p["half_stroke_m"]) ** 2
+    if "unknown_bumps" in named:
+        p = named["unknown_bumps"]
+        bumps = [v for k, v in p.items() if k.startswith("position_m_")]
+        level *= 1.0 + p["height"] * sum(np.exp(-(((x - c) / p["width_m"]) ** 2)) for c in bumps)
+    if "unknown_time_modulation" in named:
+        p = named["unknown_time_modulation"]
+        level *= 1.0 + p["beta"] * np.sin(
+            2 * np.pi * p["frequency_Hz"] * truth.time_s + p["phase_rad"]
+        )
+    return level
+
+
+def _loguniform(rng: np.random.Generator, low: float, high: float) -> float:
+    return float(np.exp(rng.uniform(np.log(low), np.log(high))))
+
+
+def draw_effect(name: str, size: float, truth: Truth, rng: np.random.Generator) -> Effect:
+    """Parameters of one effect whose force is about ``size`` times the sliding level."""
+    level = truth.sliding_force_N
+    # sized at the trace's top speed / acceleration (floors only for traces too short to move)
+    top_speed = max(float(np.max(np.abs(truth.velocity_m_s))), 1e-3)
+    top_accel = max(float(np.max(np.abs(truth.acceleration_m_s2))), 0.1)
+    duration = float(truth.time_s[-1] - truth.time_s[0])
+    sign = float(rng.choice([-1.0, 1.0]))
+    p: dict[str, float]
+    if name == "viscous":
+        p = {"c_Ns_per_m": size * level / top_speed}
+    elif name == "stribeck":
+        p = {"ratio": 1.0 + 1.3 * size, "v_s_m_per_s": rng.uniform(2.0, 10.0) * 1e-3}
+    elif name == "dwell_time":
+        p = {"gamma": rng.uniform(0.05, 0.1), "tau_s": _loguniform(rng, 0.05, 0.5)}
+    elif name == "position_ripple":
+        wavelength = _loguniform(rng, 0.5e-3, 8e-3)
+        p = {
+            "amplitude_N": size * level,
+            "wavelength_m": wavelength,
+            "phase_rad": rng.uniform(-np.pi, np.pi),
+        }
+    elif name == "offset":
+        p = {"offset_N": sign * size * level}
+    elif name == "reversal_transient":
+        p = {"amplitude_N": 1.2 * size * level, "length_m": _loguniform(rng, 30e-6, 300e-6)}
+    elif name == "drift":
+        p = {"kappa": sign * size, "tau_s": rng.uniform(0.15, 0.5) * duration}
+    elif name == "inertia":
+        p = {"mass_kg": size * level / top_accel}
+    elif name == "sensor_lowpass":
+        p = {"cutoff_Hz": _loguniform(rng, 5.0, 40.0), "order": float(rng.integers(2, 5))}
+    elif name == "unknown_stroke_profile":
+        x = truth.position_m
+        centre = 0.5 * (x.max() + x.min())
+        p = {"beta": 1.5 * size, "centre_m": centre, "half_stroke_m": 0.5 * (x.max() - x.min())}
+    elif name == "unknown_bumps":
+        sliding = truth.position_m[np.abs(truth.velocity_m_s) > 1e-3]
+        chosen = rng.choice(sliding, size=int(rng.integers(2, 5)), replace=False)
+        p = {"height": 1.5 * size, "width_m": rng.uniform(0.1e-3, 0.5e-3)}
+        p |= {f"position_m_{i}": float(c) for i, c in enumerate(chosen)}
+    elif name == "unknown_time_modulation":
+        p = {
+            "beta": size,
+            "frequency_Hz": rng.uniform(0.05, 0.3),
+            "phase_rad": rng.uniform(-np.pi, np.pi),
+        }
+    else:
+        raise ValueError(f"unknown effect {name!r}")
+    return name, p
+
+
+def _scale_main(effect: Effect, factor: float) -> Effect:
+    name, p = effect
+    key = MAIN_PARAMETER[name]
+    scaled = dict(p)
+    scaled[key] = float(1.0 + (p[key] - 1.0) * factor if key == "ratio" else p[key] * factor)
+    return name, scaled
+
+
+def _draw_truth(rng: np.random.Generator, samples: int) -> tuple[Truth, float, float]:
+    rate = float(rng.integers(10, 51) * 100)
+    position, velocity, acceleration = trajectory(rng, rate, samples)
+    n_elements = int(rng.integers(3, 13))
+    breakaway = np.sort(np.exp(rng.uniform(np.log(0.2e-6), np.log(30e-6), n_elements)))
+    breakaway[0], breakaway[-1] = 0.2e-6 * rng.uniform(1, 2), 30e-6 * rng.uniform(0.5, 1)
+    C_v = rng.uniform(1.0, 1.3)
+    sliding = _loguniform(rng, 3.0, 40.0)
+    stick_limits = rng.dirichlet(np.full(n_elements, 1.5)) * sliding / C_v
+    truth = Truth(
+        stiffness_N_per_m=stick_limits / breakaway,
+        breakaway_m=breakaway,
+        C_v=C_v,
+        transition_velocity_m_per_s=rng.uniform(0.1e-3, 0.8e-3),
+        sample_rate_Hz=rate,
+        time_s=np.arange(samples) / rate,
+        position_m=position,
+        velocity_m_s=velocity,
+        acceleration_m_s2=acceleration,
+    )
+    noise = rng.uniform(0.005, 0.03) * truth.sliding_force_N
+    quantisation = _loguniform(rng, 1e-9, 50e-9)
+    return truth, noise, quantisation
+
+
+def _effects_for(
+    case: str, truth: Truth, rng: np.random.Generator
+) -> tuple[tuple[Effect, ...], str]:
+    if case == "none":
+        return (), "none"
+    if case in CATALOGUE:
+        return (draw_effect(case, rng.uniform(0.1, 0.3), truth, rng),), case
+    if case in UNKNOWN:
+        return (draw_effect(case, rng.uniform(0.15, 0.3), truth, rng),), "unknown"
+    for big_name, small_name in PAIRS:
+        if case == f"pair_{big_name}_{small_name}":
+            big = draw_effect(big_name, 0.3, truth, rng)
+            small = draw_effect(small_name, 0.1, truth, rng)
+            base = friction(truth, ())
+            big_rms = np.sqrt(np.mean((friction(truth, (big,)) - base) ** 2))
+            small_rms = np.sqrt(np.mean((friction(truth, (small,)) - base) ** 2))
+            small = _scale_main(small, big_rms / (PAIR_SIZE_RATIO * small_rms))
+            return (big, small), big_name
+    raise ValueError(f"unknown case {case!r}")
+
+
+def baseline(seed: int, samples: int | None = None) -> tuple[Truth, float, float, np.ndarray]:
+    """The effect-free part of a seed: truth, noise level, encoder step and the noise samples.
+
+    The baseline, motion and noise depend on the seed only (the effects on seed and case),
+    so two cases of one seed differ by exactly their effects.
+    """
+    rng = np.random.default_rng(seed)
+    length = int(rng.integers(100_000, 200_001)) if samples is None else int(samples)
+    truth, noise, quantisation = _draw_truth(rng, length)
+    return truth, noise, quantisation, rng.normal(0.0, noise, length)
+
+
+def make_trace(case: str, seed: int, samples: int | None = None) -> Generated:
+    """Generate one measured-like trace with hidden ``case`` effects.
+
+    Parameters
+    ----------
+    case : str
+        One of ``CASES``.
+    seed : int
+        Seed of every random draw (trace, nominal, effect sizes): same seed, same trace.
+    samples : int, optional
+        Trace length; by default 100 000-200 000 samples drawn from the seed.
+
+    Returns
+    -------
+    Generated
+        The trace and its truth.
+    """
+    if case not in CASES:
+        raise ValueError(f"unknown case {case!r}; choose from {', '.join(CASES)}")
+    truth, noise, quantisation, noise_N = baseline(seed, samples)
+    effects, expected = _effects_for(case, truth, np.random.default_rng([seed, CASES.index(case)]))
+    force = friction(truth, effects) + noise_N
+    return Generated(
+        case=case,
+        seed=seed,
+        time_s=truth.time_s,
+        position_m=np.round(truth.position_m / quantisation) * quantisation,
+        force_N=force,
+        effects=effects,
+        expected=expected,
+        C_v=truth.C_v,
+        transition_velocity_m_per_s=truth.transition_velocity_m_per_s,
+        n_elements=truth.breakaway_m.size,
+        sliding_force_N=truth.sliding_force_N,
+        noise_N=noise,
+        sample_rate_Hz=truth.sample_rate_Hz,
+        quantisation_m=quantisation,
+    )
+
+
+def write_csv(gen: Generated, path: str | os.PathLike[str]) -> Path:
+    """Write the canonical CSV (time_s, position_m, force_N); return the path.
+
+    Written beside the target and renamed, so a killed run leaves no partial file (the
+    project's atomic writer is not used: this module imports nothing from the project).
+    """
+    target = Path(path)
+    partial = target.with_name(f".{target.name}.{os.getpid()}.partial")
+    table = np.column_stack([gen.time_s, gen.position_m, gen.force_N])
+    np.savetxt(
+        partial,
+        table,
+        fmt=("%.10g", "%.12g", "%.9g"),
+        delimiter=",",
+        header="time_s,position_m,force_N",
+        comments="",
+    )
+    os.replace(partial, target)
+    return target
+
+
+def parameter_error(effect: str, truth: dict[str, float], fitted: dict[str, float]) -> float:
+    """Relative error of the effect's main parameter (of ratio - 1 for ``stribeck``,
+    of the magnitude for ``position_ripple``'s amplitude, whose sign trades with its phase)."""
+    key = MAIN_PARAMETER[effect]
+    want, got = truth[key], float(fitted[key])
+    if key == "ratio":
+        want, got = want - 1.0, got - 1.0
+    if effect == "position_ripple":
+        want, got = abs(want), abs(got)
+    return abs(got - want) / abs(want)
