@@ -1,0 +1,190 @@
+"""Benchmark the diagnosis blind, on traces from the independent generator (tests/indepgen.py).
+
+Every case over N seeds (101, 102, ...): generate, write the canonical CSV, run
+``python -m gms_comp diagnose CSV --json`` and time the call (wall clock). Prints a markdown
+table (hit rate per case, false positives on ``none``, unknown rate, pair-order rate,
+parameter errors, median and worst time), or with ``--json`` the per-trace rows as JSON;
+``-o FILE`` writes the JSON rows.
+
+    python benchmarks/bench_diagnose_independent.py --seeds 1 --jobs 2 -o indep.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from statistics import median
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from indepdiag import TOLERANCE, main_parameter_error, pair_in_order, timed_diagnose
+from indepgen import CASES, CATALOGUE, UNKNOWN, make_trace, write_csv
+
+from gms_comp.atomic import write_text
+from gms_comp.validation import output_file
+
+FIRST_SEED = 101
+
+
+def _jobs(value: str) -> int:
+    jobs = int(value)
+    if jobs not in (1, 2):
+        raise argparse.ArgumentTypeError("1 or 2 (the machine has 2 cores)")
+    return jobs
+
+
+def _cases(value: str) -> list[str]:
+    chosen = [c.strip() for c in value.split(",") if c.strip()]
+    wrong = [c for c in chosen if c not in CASES]
+    if wrong:
+        raise argparse.ArgumentTypeError(f"unknown case(s) {wrong}; choose from {', '.join(CASES)}")
+    return chosen
+
+
+def run_one(
+    case: str, seed: int, samples: int | None, timeout_s: float, folder: Path
+) -> dict[str, Any]:
+    """Generate, diagnose and judge one trace; one row of the benchmark."""
+    gen = make_trace(case, seed, samples)
+    path = write_csv(gen, folder / f"{case}_{seed}.csv")
+    row: dict[str, Any] = {
+        "case": case,
+        "seed": seed,
+        "expected": gen.expected,
+        "truth": [[name, params] for name, params in gen.effects],
+        "samples": int(gen.time_s.size),
+        "C_v": gen.C_v,
+        "n_elements": gen.n_elements,
+        "sliding_force_N": gen.sliding_force_N,
+        "noise_N": gen.noise_N,
+        "sample_rate_Hz": gen.sample_rate_Hz,
+        "quantisation_m": gen.quantisation_m,
+    }
+    try:
+        outcome = timed_diagnose(path, timeout_s)
+    except subprocess.TimeoutExpired:
+        return row | {"status": "timeout", "named": None, "ranked": [], "seconds": timeout_s}
+    except (RuntimeError, ValueError) as err:  # non-zero exit or unreadable JSON
+        return row | {"status": f"error: {err}", "named": None, "ranked": [], "seconds": None}
+    finally:
+        path.unlink(missing_ok=True)
+    error = main_parameter_error(gen, outcome)
+    row |= {
+        "status": "ok",
+        "named": outcome.named,
+        "ranked": outcome.ranked,
+        "parameters": outcome.result.get("parameters"),
+        "gain": outcome.result.get("gain"),
+        "main_parameter_error": error,
+        "within_tolerance": None if error is None else error <= TOLERANCE[gen.expected],
+        "pair_in_order": pair_in_order(gen, outcome) if case.startswith("pair_") else None,
+        "seconds": outcome.seconds,
+    }
+    return row
+
+
+def _count(rows: list[dict[str, Any]], hit: Any) -> str:
+    return f"{sum(bool(hit(r)) for r in rows)}/{len(rows)}" if rows else "-"
+
+
+def _case_line(mine: list[dict[str, Any]]) -> str:
+    case = mine[0]["case"]
+    hits = _count(
+        mine,
+        lambda r: r["pair_in_order"] if case.startswith("pair_") else r["named"] == r["expected"],
+    )
+    named = ", ".join(
+        (r["named"] or r["status"]) + (f" ({' > '.join(r['ranked'])})" if r["ranked"] else "")
+        for r in mine
+    )
+    errors = [r["main_parameter_error"] for r in mine if r.get("main_parameter_error") is not None]
+    error = f"{median(errors):.0%} / {max(errors):.0%}" if errors else "-"
+    judged = [r for r in mine if r.get("within_tolerance") is not None]
+    seconds = [r["seconds"] for r in mine if r["seconds"] is not None]
+    took = f"{median(seconds):.0f} / {max(seconds):.0f}" if seconds else "-"
+    within = _count(judged, lambda r: r["within_tolerance"])
+    return f"| {case} | {mine[0]['expected']} | {hits} | {named} | {error} | {within} | {took} |"
+
+
+def table(rows: list[dict[str, Any]]) -> str:
+    """The markdown summary of the rows: one line per case, then the totals."""
+    lines = [
+        "| case | expected | hit | named (ranked) | param err med/worst | in tol. | s med/worst |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for case in dict.fromkeys(r["case"] for r in rows):
+        lines.append(_case_line([r for r in rows if r["case"] == case]))
+    catalogue = [r for r in rows if r["case"] in CATALOGUE]
+    none = [r for r in rows if r["case"] == "none"]
+    unknown = [r for r in rows if r["case"] in UNKNOWN]
+    pairs = [r for r in rows if r["case"].startswith("pair_")]
+    seconds = [r["seconds"] for r in rows if r["seconds"] is not None]
+    named_first = _count(catalogue, lambda r: r["named"] == r["case"])
+    lines += [
+        "",
+        f"- catalogue effects named first: {named_first}; main parameter within tolerance: "
+        + _count(catalogue, lambda r: r.get("within_tolerance")),
+        f"- false positives on effect-free traces: {_count(none, lambda r: r['named'] != 'none')}",
+        "- uncatalogued effects called unknown: "
+        + _count(unknown, lambda r: r["named"] == "unknown"),
+        f"- pairs in the right order: {_count(pairs, lambda r: r['pair_in_order'])}",
+        f"- timeouts: {_count(rows, lambda r: r['status'] == 'timeout')}, errors: "
+        + _count(rows, lambda r: r["status"].startswith("error")),
+        f"- time per diagnosis: median {median(seconds):.1f} s, worst {max(seconds):.1f} s"
+        if seconds
+        else "- time per diagnosis: -",
+    ]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark; return the exit code."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=5, help="seeds per case (default 5)")
+    parser.add_argument(
+        "--cases", type=_cases, default=list(CASES), help="comma-separated cases (default all)"
+    )
+    parser.add_argument(
+        "--samples", type=int, default=None, help="trace length (default 100k-200k by seed)"
+    )
+    parser.add_argument("--jobs", type=_jobs, default=1, help="diagnoses at once, 1 or 2")
+    parser.add_argument(
+        "--timeout", type=float, default=900.0, help="seconds per diagnosis (default 900)"
+    )
+    parser.add_argument(
+        "--json", action="store_true", help="print the rows as JSON instead of the table"
+    )
+    parser.add_argument("-o", "--output", type=output_file, help="write the rows as JSON here")
+    args = parser.parse_args(argv)
+    work = [(case, FIRST_SEED + i) for i in range(args.seeds) for case in args.cases]
+    rows: list[dict[str, Any]] = []
+    with tempfile.TemporaryDirectory() as folder, ThreadPoolExecutor(args.jobs) as pool:
+        futures = [
+            pool.submit(run_one, c, s, args.samples, args.timeout, Path(folder)) for c, s in work
+        ]
+        for future in futures:
+            row = future.result()
+            rows.append(row)
+            took = "-" if row["seconds"] is None else f"{row['seconds']:.1f} s"
+            print(
+                f"{row['case']} seed {row['seed']}: {row['named'] or row['status']} "
+                f"(expected {row['expected']}) {took}",
+                file=sys.stderr,
+                flush=True,
+            )
+            if args.output:  # rewritten after every trace: a long run keeps what it has
+                write_text(args.output, json.dumps(rows, indent=1, default=float))
+    if args.output:
+        print(f"wrote {args.output}", file=sys.stderr)
+    print(json.dumps(rows, indent=1, default=float) if args.json else table(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

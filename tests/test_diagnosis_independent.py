@@ -1,0 +1,92 @@
+"""Blind tests of ``gms-comp diagnose`` on traces from an independent generator.
+
+The diagnosis is a black box here: traces come from ``indepgen`` (no code shared with the
+diagnosis or with the project's own generator), go through the CLI as canonical CSV, and the
+answer is judged against the generator's truth. One fixed seed per case by default;
+``GMS_INDEP_SEEDS=5`` runs five (seeds 101, 102, ...). Each trace is diagnosed once per
+session and shared by the assertions on it.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from indepdiag import TOLERANCE, Outcome, main_parameter_error, pair_in_order, timed_diagnose
+from indepgen import CATALOGUE, MAIN_PARAMETER, PAIRS, UNKNOWN, Generated, make_trace, write_csv
+
+pytestmark = pytest.mark.slow  # every case runs the full diagnosis (tens of seconds each)
+
+FIRST_SEED = 101
+SEEDS = [FIRST_SEED + i for i in range(int(os.environ.get("GMS_INDEP_SEEDS", "1")))]
+TIMEOUT_S = float(os.environ.get("GMS_INDEP_TIMEOUT_S", "900"))
+
+_diagnosed: dict[tuple[str, int], tuple[Generated, Outcome]] = {}
+
+
+@pytest.fixture(scope="session")
+def trace_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One folder for every generated trace of the session."""
+    return tmp_path_factory.mktemp("indep_traces")
+
+
+def diagnosed(case: str, seed: int, folder: Path) -> tuple[Generated, Outcome]:
+    """Generate ``case`` for ``seed``, diagnose it through the CLI (once per session)."""
+    if (case, seed) not in _diagnosed:
+        gen = make_trace(case, seed)
+        path = write_csv(gen, folder / f"{case}_{seed}.csv")
+        _diagnosed[case, seed] = gen, timed_diagnose(path, TIMEOUT_S)
+    return _diagnosed[case, seed]
+
+
+def _describe(gen: Generated, outcome: Outcome) -> str:
+    return (
+        f"{gen.case} seed {gen.seed}: truth {gen.effects} (C_v {gen.C_v:.3f}, "
+        f"{gen.n_elements} elements, level {gen.sliding_force_N:.2f} N, "
+        f"noise {gen.noise_N:.3f} N); diagnosis named {outcome.named!r}, "
+        f"ranked {outcome.ranked}, parameters {outcome.result.get('parameters')}"
+    )
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("effect", CATALOGUE)
+def test_catalogue_effect_is_named_first(effect: str, seed: int, trace_dir: Path) -> None:
+    gen, outcome = diagnosed(effect, seed, trace_dir)
+    assert outcome.named == effect, _describe(gen, outcome)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("effect", CATALOGUE)
+def test_catalogue_effect_main_parameter_within_tolerance(
+    effect: str, seed: int, trace_dir: Path
+) -> None:
+    gen, outcome = diagnosed(effect, seed, trace_dir)
+    error = main_parameter_error(gen, outcome)
+    assert error is not None, f"{effect} not fitted: " + _describe(gen, outcome)
+    assert error <= TOLERANCE[effect], (
+        f"{MAIN_PARAMETER[effect]} off by {error:.0%} (tolerance {TOLERANCE[effect]:.0%}): "
+        + _describe(gen, outcome)
+    )
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_effect_free_trace_is_none(seed: int, trace_dir: Path) -> None:
+    gen, outcome = diagnosed("none", seed, trace_dir)
+    assert outcome.named == "none", _describe(gen, outcome)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("case", UNKNOWN)
+def test_uncatalogued_effect_is_unknown(case: str, seed: int, trace_dir: Path) -> None:
+    gen, outcome = diagnosed(case, seed, trace_dir)
+    assert outcome.named == "unknown", _describe(gen, outcome)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize(("big", "small"), PAIRS)
+def test_two_effects_are_ranked_larger_first(
+    big: str, small: str, seed: int, trace_dir: Path
+) -> None:
+    gen, outcome = diagnosed(f"pair_{big}_{small}", seed, trace_dir)
+    assert pair_in_order(gen, outcome), _describe(gen, outcome)
