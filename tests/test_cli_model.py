@@ -101,7 +101,7 @@ def test_plot_writes_four_pngs(
     # A person can read them: a title on every figure, every axis labelled with its unit.
     assert len(figures) == 4
     for fig in figures:
-        suptitle = fig._suptitle.get_text() if fig._suptitle is not None else ""
+        suptitle = fig.get_suptitle()
         plot_axes = [ax for ax in fig.axes if ax.get_label() != "<colorbar>"]
         for ax in plot_axes:
             assert suptitle or ax.get_title(), f"untitled figure {fig}"
