@@ -67,7 +67,9 @@ def test_rows_state_unit_default_and_range() -> None:
     text = DOC.read_text(encoding="utf-8")
     # The seed's Table 1 values and the loader's ranges, written out by hand.
     assert "| `ball_radius_m` | m | *required* (Table 1: `0.003175`) | number, > 0 |" in text
-    assert "| `poisson_ratio_ball` | - | *required* (Table 1: `0.3`) | number, in [0, 0.5) |" in text
+    assert (
+        "| `poisson_ratio_ball` | - | *required* (Table 1: `0.3`) | number, in [0, 0.5) |" in text
+    )
     assert "| `slip_exaggeration` | - | `1.0` (Table 1: `1.2`) | number, in [1, 10] |" in text
     assert '| `curve` | - | `"virgin"` | one of "virgin", "reversal" |' in text
     assert "| `elements` | - | `16` |" in text and "in [1, 1024]" in text

@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import site
 import subprocess
 import sys
 import sysconfig
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -40,42 +40,13 @@ def _run(args: list[str | Path], cwd: Path) -> subprocess.CompletedProcess[str]:
     return result
 
 
-def _tracked_files() -> list[str]:
-    """The files a clean clone holds (tracked, plus new files not yet committed)."""
-    if shutil.which("git") is None or not (ROOT / ".git").exists():
-        pytest.skip("not a git checkout: cannot tell which files a clone would hold")
-    listed = subprocess.run(
-        ["git", "ls-files", "--cached", "--others", "--exclude-standard", "-z"],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout
-    return [name for name in listed.split("\0") if name]
-
-
-def copy_checkout(target: Path) -> Path:
-    """Copy the files of a clean clone of the checkout into ``target``."""
-    for name in _tracked_files():
-        source = ROOT / name
-        if not source.exists() and not source.is_symlink():
-            continue  # deleted in the work tree
-        dest = target / name
-        dest.parent.mkdir(parents=True, exist_ok=True)
-        if source.is_symlink():
-            dest.symlink_to(os.readlink(source))
-        else:
-            shutil.copy2(source, dest)
-    return target
-
-
 @pytest.fixture(scope="module")
-def venv(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def venv(tmp_path_factory: pytest.TempPathFactory, checkout_copier: Callable[[Path], Path]) -> Path:
     """A fresh venv with the wheel installed; returns its bin folder."""
     pytest.importorskip("setuptools", reason="setuptools is needed to build the wheel")
     pytest.importorskip("wheel", reason="wheel is needed to build the wheel")
     base = tmp_path_factory.mktemp("wheel")
-    source = copy_checkout(base / "src")
+    source = checkout_copier(base / "src")
     dist = base / "dist"
     build: list[str | Path] = [sys.executable, "-m", "pip", "wheel", "-q", "-w", dist]
     _run([*build, "--no-deps", "--no-build-isolation", "--no-index", source], cwd=base)
