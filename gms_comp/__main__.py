@@ -1,5 +1,11 @@
+"""``python -m gms_comp``: the ``gms-comp`` command line."""
+
 import sys
 
-from .cli import main
+try:
+    from .cli import main
+except KeyboardInterrupt:  # Ctrl-C while the interpreter imports the CLI
+    print("gms-comp: interrupted", file=sys.stderr)
+    sys.exit(130)
 
 sys.exit(main())

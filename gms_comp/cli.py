@@ -3,7 +3,14 @@
 Each subcommand lives in ``gms_comp.commands.<name>`` and exposes
 ``register(subparsers)``, which adds its parser and sets ``func`` to a callable
 taking the parsed namespace and returning the exit code. Bad input raised as
-:class:`~gms_comp.errors.GmsCompError` becomes one line on stderr and exit code 2.
+:class:`~gms_comp.errors.GmsCompError` becomes one line on stderr and exit code 2;
+Ctrl-C, wherever it lands (importing the subcommands, parsing, running), one line
+and exit code 130.
+
+Every subcommand follows one convention: ``--json`` prints the result as JSON on
+stdout and nothing else there; without it a short human summary goes to stdout.
+Files are written only where an option names them (``-o/--output``, ``--plot DIR``,
+...), each announced by one ``wrote PATH`` line (on stderr under ``--json``).
 """
 
 from __future__ import annotations
@@ -16,8 +23,10 @@ from collections.abc import Sequence
 from . import __version__
 from .errors import GmsCompError
 
+# One line per subcommand, each a module gms_comp.commands.<name> with register().
 SUBCOMMANDS: tuple[str, ...] = (
     "model",
+    "config",
     "diagnose",
     "profile",
     "sweep",
@@ -27,8 +36,11 @@ SUBCOMMANDS: tuple[str, ...] = (
     "bench",
 )
 
+INTERRUPTED = 130  # the shell's code for a process ended by SIGINT
+
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``gms-comp`` parser with every subcommand of :data:`SUBCOMMANDS` registered."""
     parser = argparse.ArgumentParser(
         prog="gms-comp",
         description="Friction compensation for linear-motor axes with ball guides.",
@@ -42,16 +54,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    """Run ``gms-comp`` with ``argv`` (default: the process arguments); return the exit code."""
+    command = "gms-comp"
     try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        command = f"gms-comp {args.command}"
         code: int = args.func(args)
     except GmsCompError as err:
-        print(f"gms-comp {args.command}: error: {err}", file=sys.stderr)
+        print(f"{command}: error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"gms-comp {args.command}: interrupted", file=sys.stderr)
-        return 130
+        print(f"{command}: interrupted", file=sys.stderr)
+        return INTERRUPTED
     return code
 
 

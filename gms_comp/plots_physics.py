@@ -1,4 +1,8 @@
-"""PNG analogues of the seed's Figs. 3, 4, 5 and 8 for a config's first ball."""
+"""PNG analogues of the seed's Figs. 3, 4, 5 and 8 for a config's first ball.
+
+Every figure has a title naming the seed figure it stands for and the ball load, and
+every axis its quantity and unit. Files are written atomically (:mod:`gms_comp.atomic`).
+"""
 
 from __future__ import annotations
 
@@ -9,8 +13,11 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.patches import Patch
 from numpy.typing import NDArray
 
+from .atomic import atomic_path
 from .ball_model import (
     StripeModel,
     friction_torque_Nm,
@@ -23,6 +30,20 @@ from .profiles import seed_fig7_profile
 from .transient import BallSetFriction
 
 UM = 1e6  # m -> um for axis labels
+X_LABEL = "x along the motion [µm] (balls enter at x = -a)"
+Y_LABEL = "y across the motion [µm]"
+
+
+def _save(fig: Figure, path: Path) -> None:
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=120)
+    finally:
+        plt.close(fig)
+
+
+def _load_text(cfg: BallConfig) -> str:
+    return f"first ball of {len(cfg.stand.ball_loads_N)}, load {cfg.stand.ball_loads_N[0]:g} N"
 
 
 def _steady_fields(model: StripeModel, xi0: float, n: int = 301) -> tuple[NDArray[np.float64], ...]:
@@ -45,7 +66,7 @@ def fig3_stick_slip(cfg: BallConfig, path: Path) -> None:
     steady, model = steady_state(cfg, load), stripe_model(cfg, load)
     x, y, u, _ = _steady_fields(model, steady.xi0)
     stick = np.abs(u) < model.slip_limit_m(y) * (1 - 1e-12)
-    fig, ax = plt.subplots(figsize=(5, 6))
+    fig, ax = plt.subplots(figsize=(6, 7))
     ax.contourf(
         x * UM,
         y * UM,
@@ -57,18 +78,33 @@ def fig3_stick_slip(cfg: BallConfig, path: Path) -> None:
     half = model.contact.half_length_m(ys)
     ax.plot(half * UM, ys * UM, "k", -half * UM, ys * UM, "k")
     boundary = -half + model.stick_length_m(ys, steady.xi0)
-    ax.plot(boundary * UM, ys * UM, color="0.4", lw=1.2, label="stick/slip boundary a0(y)")
+    ax.plot(boundary * UM, ys * UM, color="0.4", lw=1.2)
     for sign in (1, -1):
         ax.axhline(sign * steady.b0_m * UM, ls="--", color="k", lw=0.8)
     ax.set(
-        xlabel="x along motion [um] (entry at -a)",
-        ylabel="y [um]",
-        title=f"Stick (blue) and slip, beta = {steady.beta:.4f}",
+        xlabel=X_LABEL,
+        ylabel=Y_LABEL,
+        title=(
+            "Stick and slip areas of the contact (seed Fig. 3)\n"
+            f"{_load_text(cfg)}, beta = {steady.beta:.4f}"
+        ),
     )
-    ax.legend(loc="lower right", fontsize=8)
+    handles = [
+        Patch(color="#4c72b0", label="stick"),
+        Patch(color="#d9d9d9", label="slip"),
+        plt.Line2D([], [], color="0.4", lw=1.2, label="stick/slip boundary a0(y)"),
+        plt.Line2D(
+            [],
+            [],
+            color="k",
+            ls="--",
+            lw=0.8,
+            label=f"lines of pure rolling, y = ±{steady.b0_m * UM:.1f} µm",
+        ),
+    ]
+    ax.legend(handles=handles, loc="lower right", fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def fig4_fields(cfg: BallConfig, path: Path) -> None:
@@ -77,18 +113,19 @@ def fig4_fields(cfg: BallConfig, path: Path) -> None:
     steady, model = steady_state(cfg, load), stripe_model(cfg, load)
     x, y, u, traction = _steady_fields(model, steady.xi0)
     fig, axes = plt.subplots(1, 2, figsize=(9, 5.5), sharey=True)
-    for ax, field, label in (
-        (axes[0], u * 1e9, "displacement u [nm]"),
-        (axes[1], traction / 1e6, "traction F [N/mm^2]"),
+    for ax, field, label, title in (
+        (axes[0], u * 1e9, "bristle displacement u [nm]", "Bristle displacement u(x, y)"),
+        (axes[1], traction / 1e6, "traction F [N/mm²]", "Tangential traction F(x, y)"),
     ):
         mesh = ax.pcolormesh(x * UM, y * UM, field, shading="auto", cmap="coolwarm")
         fig.colorbar(mesh, ax=ax, label=label)
-        ax.set(xlabel="x along motion [um]")
-    axes[0].set(ylabel="y [um]")
-    fig.suptitle("Steady bristle field (entry at x = -a)")
+        ax.set(xlabel=X_LABEL, title=title)
+    axes[0].set(ylabel=Y_LABEL)
+    fig.suptitle(
+        f"Steady rolling: fields over the contact ellipse (seed Fig. 4), {_load_text(cfg)}"
+    )
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def fig5_torque_map(cfg: BallConfig, path: Path) -> None:
@@ -101,16 +138,20 @@ def fig5_torque_map(cfg: BallConfig, path: Path) -> None:
     torque = np.array(
         [[friction_torque_Nm(model, float(bt), float(lm), n) for bt in betas] for lm in lambdas]
     )
-    fig, ax = plt.subplots(figsize=(6, 4.5))
+    fig, ax = plt.subplots(figsize=(7, 5.5))
     mesh = ax.pcolormesh(betas, lambdas, np.log10(torque), shading="auto", cmap="viridis")
-    fig.colorbar(mesh, ax=ax, label="log10 M [N m]")
-    ax.plot(steady.betas, steady.lambdas, "w.", ms=4, label="minimum over beta")
-    ax.axvline(steady.beta, color="w", ls=":", label=f"beta = {steady.beta:.4f}")
-    ax.set(xlabel="beta = b0 / b", ylabel="lambda = rho / b", yscale="log")
+    fig.colorbar(mesh, ax=ax, label="friction torque M: log10(M / N m)")
+    ax.plot(steady.betas, steady.lambdas, "w.", ms=4, label="minimum over beta at each lambda")
+    ax.axvline(steady.beta, color="w", ls=":", label=f"rolling line beta = {steady.beta:.4f}")
+    ax.set(
+        xlabel="beta = b0 / b: position of the rolling lines [-]",
+        ylabel="lambda = rho / b: their radius of curvature [-]",
+        yscale="log",
+        title=f"Friction torque over the rolling-line position (seed Fig. 5)\n{_load_text(cfg)}",
+    )
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def fig8_hysteresis(cfg: BallConfig, path: Path) -> None:
@@ -119,16 +160,21 @@ def fig8_hysteresis(cfg: BallConfig, path: Path) -> None:
     force = BallSetFriction(cfg).force(x, v)
     fig, axes = plt.subplots(2, 1, figsize=(7, 7))
     axes[0].plot(t, x * 1e3)
-    axes[0].set(xlabel="time [s]", ylabel="position [mm]", title="Profile (seed Fig. 7)")
+    axes[0].set(
+        xlabel="time [s]",
+        ylabel="carriage position [mm]",
+        title="Position profile: 0.1 mm steps out and back (seed Fig. 7)",
+    )
     axes[1].plot(x * 1e3, force, lw=1)
     axes[1].set(
-        xlabel="position [mm]",
+        xlabel="carriage position [mm]",
         ylabel="friction force [N]",
-        title="Hysteresis of the ball set (seed Fig. 8)",
+        title="Friction force over position: hysteresis (seed Fig. 8)",
     )
+    loads = ", ".join(f"{q:g}" for q in cfg.stand.ball_loads_N)
+    fig.suptitle(f"Transient friction of the ball set (ball loads {loads} N)")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def write_figures(cfg: BallConfig, directory: Path) -> list[Path]:

@@ -1,18 +1,25 @@
-"""`gms-comp model`: the JSON keys the issue names, in SI units, and the text summary."""
+"""`gms-comp model`: the JSON keys the issue names, in SI units, and the text summary;
+the CLI convention shared by model, table and the rest (paths checked at parsing, Ctrl-C)."""
 
 from __future__ import annotations
 
 import json
 import math
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
 import pytest
+from matplotlib.figure import Figure
 
+import gms_comp.plots_physics as plots
 from gms_comp.cli import main
 from gms_comp.config import default_config_path
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _json(capsys: pytest.CaptureFixture[str], argv: list[str]) -> dict[str, Any]:
@@ -76,9 +83,32 @@ def test_console_entry_point() -> None:
     assert "sliding_force_N" in json.loads(result.stdout)["friction"]
 
 
-def test_plot_writes_four_pngs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_plot_writes_four_pngs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    figures: list[Figure] = []
+    save = plots._save
+
+    def keep(fig: Figure, path: Path) -> None:
+        figures.append(fig)
+        save(fig, path)
+
+    monkeypatch.setattr(plots, "_save", keep)
     assert main(["model", "--json", "--plot", str(tmp_path / "figs")]) == 0
-    json.loads(capsys.readouterr().out)  # stdout stays one JSON object
+    captured = capsys.readouterr()
+    json.loads(captured.out)  # stdout stays one JSON object
+    assert captured.err.count("wrote ") == 4  # each file announced, on stderr under --json
+    # A person can read them: a title on every figure, every axis labelled with its unit.
+    assert len(figures) == 4
+    for fig in figures:
+        suptitle = fig.get_suptitle()
+        plot_axes = [ax for ax in fig.axes if ax.get_label() != "<colorbar>"]
+        for ax in plot_axes:
+            assert suptitle or ax.get_title(), f"untitled figure {fig}"
+            assert "[" in ax.get_xlabel() and "]" in ax.get_xlabel(), ax.get_xlabel()
+            if ax.get_ylabel():  # shared y axes label the first plot only
+                assert "[" in ax.get_ylabel() and "]" in ax.get_ylabel(), ax.get_ylabel()
+        assert plot_axes[0].get_ylabel()
     names = sorted(p.name for p in (tmp_path / "figs").iterdir())
     assert names == [
         "fig3_stick_slip.png",
@@ -88,3 +118,60 @@ def test_plot_writes_four_pngs(tmp_path: Path, capsys: pytest.CaptureFixture[str
     ]
     for name in names:
         assert (tmp_path / "figs" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_plot_dir_that_is_a_file_is_refused_at_parsing(tmp_path: Path) -> None:
+    (tmp_path / "f").write_text("")
+    with pytest.raises(SystemExit) as exit_info:
+        main(["model", "--plot", str(tmp_path / "f")])
+    assert exit_info.value.code == 2
+
+
+@pytest.mark.parametrize("elements", ["0", "1025", "-3", "many"])
+def test_table_elements_bounded_at_parsing(elements: str, tmp_path: Path) -> None:
+    """Refused before any fitting, like the config's [table] elements in [1, 1024]."""
+    start = time.perf_counter()
+    with pytest.raises(SystemExit) as exit_info:
+        main(["table", "-o", str(tmp_path / "t.json"), "--elements", elements])
+    assert exit_info.value.code == 2
+    assert time.perf_counter() - start < 10  # no reduction ran
+    assert not (tmp_path / "t.json").exists()
+
+
+def test_table_output_into_missing_folder_refused_at_parsing(tmp_path: Path) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main(["table", "-o", str(tmp_path / "missing" / "t.json")])
+    assert exit_info.value.code == 2
+
+
+def _interrupt(args: list[str], delay_s: float) -> subprocess.CompletedProcess[str]:
+    """Run ``python -m gms_comp ARGS``; send SIGINT ``delay_s`` after the interpreter is up
+    (before that no Python program can handle it)."""
+    code = (
+        "import sys, runpy; sys.stderr.write('ready\\n'); sys.stderr.flush(); "
+        f"sys.argv = ['gms-comp', *{args!r}]; runpy.run_module('gms_comp', run_name='__main__')"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
+    assert proc.stderr is not None
+    assert proc.stderr.readline() == "ready\n"
+    time.sleep(delay_s)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=120)
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
+@pytest.mark.parametrize("delay_s", [1.0, 10.0], ids=["while-importing", "while-running"])
+def test_ctrl_c_is_one_line_and_exit_130(delay_s: float) -> None:
+    """Ctrl-C during the imports (numpy, numba: seconds) or the run: exit 130, one line."""
+    result = _interrupt(["bench"], delay_s)  # the full bench runs for minutes
+    assert result.returncode == 130, result.stderr
+    assert "Traceback" not in result.stderr
+    lines = result.stderr.strip().splitlines()
+    # Before the arguments are parsed the CLI does not know the subcommand yet.
+    assert lines in (["gms-comp: interrupted"], ["gms-comp bench: interrupted"]), lines

@@ -28,7 +28,27 @@ def test_ruff_format_is_applied() -> None:
     assert result.returncode == 0, result.stdout + result.stderr
 
 
+@pytest.mark.slow  # about a minute
 def test_mypy_is_clean() -> None:
     pytest.importorskip("mypy", reason="mypy is not installed")
     result = _run([sys.executable, "-m", "mypy"])
     assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_slow_list_names_existing_tests() -> None:
+    """A renamed test must not silently lose its ``slow`` mark (tests/conftest.py)."""
+    from conftest import SLOW
+
+    for file_name, names in SLOW.items():
+        text = (ROOT / "tests" / file_name).read_text(encoding="utf-8")
+        for name in names:
+            assert f"def {name}(" in text, f"tests/conftest.py SLOW: {file_name}::{name} not found"
+
+
+def test_slow_marker_is_registered() -> None:
+    """``-m "not slow"`` needs the marker declared (pytest warns about unknown ones)."""
+    import tomllib
+
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    markers = config["tool"]["pytest"]["ini_options"]["markers"]
+    assert any(m.startswith("slow:") for m in markers)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 from typing import Any
 
 from ..ball_model import SteadyResult, steady_state
 from ..config import BallConfig, load_ball_config
+from ..validation import input_file, output_dir
 
 
 def register(subparsers: Any) -> None:
@@ -21,10 +21,17 @@ def register(subparsers: Any) -> None:
             "configured ball set (default: the packaged seed Table 1)."
         ),
     )
-    parser.add_argument("config", nargs="?", type=Path, help="config TOML (default: Table 1)")
-    parser.add_argument("--json", action="store_true", help="print one JSON object (SI units)")
     parser.add_argument(
-        "--plot", type=Path, metavar="DIR", help="write PNGs of the seed's Figs. 3, 4, 5 and 8"
+        "config", nargs="?", type=input_file, help="config TOML (default: the seed's Table 1)"
+    )
+    parser.add_argument(
+        "--json", action="store_true", help="print one JSON object (SI units) on stdout only"
+    )
+    parser.add_argument(
+        "--plot",
+        type=output_dir,
+        metavar="DIR",
+        help="write PNGs of the seed's Figs. 3, 4, 5 and 8 into DIR (created)",
     )
     parser.set_defaults(func=run)
 
@@ -90,5 +97,5 @@ def run(args: argparse.Namespace) -> int:
         from ..plots_physics import write_figures  # matplotlib only when asked for
 
         for path in write_figures(cfg, args.plot):
-            print(f"wrote {path}", file=sys.stderr if args.json else sys.stdout)
+            print(f"wrote {path}", file=sys.stderr if args.json else sys.stdout, flush=True)
     return 0

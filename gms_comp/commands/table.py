@@ -7,18 +7,24 @@ import dataclasses
 import json
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
 from ..config import load_ball_config
 from ..reduction import load_table_config, reduce_to_gms
 from ..table import write_table
+from ..validation import input_file, output_file
+
+# The [table] elements range of the config (gms_comp.reduction.TableConfig).
+MAX_ELEMENTS = 1024
 
 
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+def _element_count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+    if not 1 <= value <= MAX_ELEMENTS:
+        raise argparse.ArgumentTypeError(f"must be in [1, {MAX_ELEMENTS}], got {value}")
     return value
 
 
@@ -43,10 +49,17 @@ def register(subparsers: Any) -> None:
             "over the seed's Fig. 7 profile and a random multi-amplitude path."
         ),
     )
-    parser.add_argument("config", nargs="?", type=Path, help="config TOML (default: Table 1)")
-    parser.add_argument("-o", "--output", type=Path, required=True, help="table file to write")
     parser.add_argument(
-        "--elements", type=_positive_int, help="number of elements N (default: [table] elements)"
+        "config", nargs="?", type=input_file, help="config TOML (default: the seed's Table 1)"
+    )
+    parser.add_argument(
+        "-o", "--output", type=output_file, required=True, help="table file to write (JSON)"
+    )
+    parser.add_argument(
+        "--elements",
+        type=_element_count,
+        metavar="N",
+        help=f"number of elements, 1..{MAX_ELEMENTS} (default: [table] elements)",
     )
     parser.add_argument(
         "--family-loads",
@@ -54,7 +67,7 @@ def register(subparsers: Any) -> None:
         metavar="N1,N2,...",
         help="also fit a load family at these ball loads in N (default: [table] family_loads_N)",
     )
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--json", action="store_true", help="print one JSON object on stdout only")
     parser.set_defaults(func=run)
 
 
@@ -79,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
     }
     if args.json:
         print(json.dumps(summary))
+        print(f"wrote {args.output}", file=sys.stderr)
     else:
         print(
             f"wrote {args.output}: {table.n_elements} elements, "
