@@ -39,6 +39,7 @@ KNOWN_SECTIONS = frozenset(
         "compensator",  # observer and feedforward (runtime)
         "can",  # CAN transport (firmware_bridge)
         "diagnosis",  # measured-data analysis
+        "scaleout",  # Dask scheduler address and TLS files (application)
     }
 )
 
