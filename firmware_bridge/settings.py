@@ -42,17 +42,17 @@ class CanConfig:
     profile: ProfileName = "cia402"
     interface: str = "virtual"
     channel: str = "gms-comp"
-    bitrate_bit_s: int = field(default=1_000_000, metadata=positive())
-    cycle_period_s: float = field(default=1e-3, metadata=positive())
-    max_current_A: float = field(default=1.0, metadata=positive())
+    bitrate_bit_s: int = field(default=1_000_000, metadata=in_range(10_000, 8_000_000))
+    cycle_period_s: float = field(default=1e-3, metadata=in_range(1e-4, 1.0))
+    max_current_A: float = field(default=1.0, metadata=in_range(1e-3, 1e3))
     ramp_time_s: float = field(default=5e-3, metadata=positive())
-    rx_timeout_s: float = field(default=3e-3, metadata=positive())
+    rx_timeout_s: float = field(default=3e-3, metadata=in_range(1e-4, 10.0))
     max_frame_age_cycles: int = field(default=1, metadata=in_range(0, 16))
     drive_node_id: int = field(default=1, metadata=in_range(1, 127))
     compensator_node_id: int = field(default=16, metadata=in_range(1, 127))
     sync_master: bool = True
-    heartbeat_period_s: float = field(default=0.1, metadata=positive())
-    rated_current_A: float = field(default=2.0, metadata=positive())
+    heartbeat_period_s: float = field(default=0.1, metadata=in_range(1e-3, 60.0))
+    rated_current_A: float = field(default=2.0, metadata=in_range(1e-3, 1e3))
     background_load: float = field(default=0.0, metadata=in_range(0.0, 1.0, hi_open=True))
     status_every_cycles: int = field(default=1, metadata=in_range(1, 1000))
 

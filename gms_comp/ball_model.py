@@ -25,7 +25,8 @@ from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
 from .config import BallConfig, ModelConfig
-from .contact import HertzContact, effective_shear_modulus_Pa, hertz_contact
+from .contact import HertzContact, contact_problem, effective_shear_modulus_Pa, hertz_contact
+from .errors import ConfigError
 
 FloatArray = NDArray[np.float64]
 
@@ -198,8 +199,18 @@ class SteadyResult:
 
 
 def stripe_model(cfg: BallConfig, normal_load_N: float) -> StripeModel:
-    """The bristle-field parameters of one ball under ``normal_load_N``."""
+    """The bristle-field parameters of one ball under ``normal_load_N``.
+
+    Raises
+    ------
+    ConfigError
+        When the load makes a contact outside the Hertz model (see
+        :func:`gms_comp.contact.contact_problem`), naming the config file.
+    """
     contact = hertz_contact(cfg.bearing, normal_load_N)
+    problem = contact_problem(contact, cfg.bearing.ball_radius_m)
+    if problem is not None:
+        raise ConfigError(cfg.path, "stand.ball_loads_N", problem)
     return StripeModel(
         contact=contact,
         ball_radius_m=cfg.bearing.ball_radius_m,

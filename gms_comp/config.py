@@ -16,7 +16,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import math
-import tomllib
 import types
 import typing
 from collections.abc import Callable, Mapping
@@ -26,6 +25,7 @@ from pathlib import Path
 from typing import Any, Literal, TypeVar
 
 from .errors import ConfigError
+from .validation import MAX_BALL_LOADS, read_toml_document
 
 KNOWN_SECTIONS = frozenset(
     {
@@ -39,32 +39,60 @@ KNOWN_SECTIONS = frozenset(
         "compensator",  # observer and feedforward (runtime)
         "can",  # CAN transport (firmware_bridge)
         "diagnosis",  # measured-data analysis
+        "scaleout",  # Dask scheduler address and TLS files (application)
     }
 )
 
 Check = Callable[[Any], "str | None"]
+
+#: Smallest groove radius over ball radius: the contact ellipse's aspect ratio grows
+#: without bound as the groove closes on the ball (Ry / Rx = Rr / (Rr - R) <= 201).
+MIN_GROOVE_RATIO = 1.005
 T = TypeVar("T")
 
 
-def positive() -> dict[str, Check]:
-    """Field metadata: the value must be finite and > 0."""
-    return {"check": lambda v: None if _all(v, lambda x: x > 0) else "must be > 0"}
+def positive(*, max_items: int | None = None) -> dict[str, Any]:
+    """Field metadata: the value must be finite and > 0 (at most ``max_items`` entries)."""
+    return {
+        "check": lambda v: None if _all(v, lambda x: x > 0) else "must be > 0",
+        "range": (0.0, math.inf, "(", ")"),
+        "max_items": max_items,
+    }
 
 
-def non_negative() -> dict[str, Check]:
+def non_negative() -> dict[str, Any]:
     """Field metadata: the value must be finite and >= 0."""
-    return {"check": lambda v: None if _all(v, lambda x: x >= 0) else "must be >= 0"}
+    return {
+        "check": lambda v: None if _all(v, lambda x: x >= 0) else "must be >= 0",
+        "range": (0.0, math.inf, "[", ")"),
+    }
 
 
-def in_range(lo: float, hi: float, *, hi_open: bool = False) -> dict[str, Check]:
-    """Field metadata: lo <= value <= hi (or < hi when ``hi_open``)."""
+def in_range(
+    lo: float,
+    hi: float,
+    *,
+    hi_open: bool = False,
+    lo_open: bool = False,
+    max_items: int | None = None,
+) -> dict[str, Any]:
+    """Field metadata: lo <= value <= hi (``lo_open``/``hi_open`` make a bound strict).
+
+    ``max_items`` caps the number of entries of an array field; it is checked before
+    the entries are.
+    """
+    lower = "(" if lo_open else "["
     upper = ")" if hi_open else "]"
 
-    def check(v: Any) -> str | None:
-        ok = _all(v, lambda x: lo <= x < hi if hi_open else lo <= x <= hi)
-        return None if ok else f"must be in [{lo:g}, {hi:g}{upper}"
+    def inside(x: float) -> bool:
+        above = lo < x if lo_open else lo <= x
+        below = x < hi if hi_open else x <= hi
+        return above and below
 
-    return {"check": check}
+    def check(v: Any) -> str | None:
+        return None if _all(v, inside) else f"must be in {lower}{lo:g}, {hi:g}{upper}"
+
+    return {"check": check, "range": (lo, hi, lower, upper), "max_items": max_items}
 
 
 def _all(value: Any, pred: Callable[[float], bool]) -> bool:
@@ -80,15 +108,7 @@ def default_config_path() -> Path:
 def read_toml(path: str | Path) -> dict[str, Any]:
     """Read a config file and refuse unreadable TOML or unknown sections."""
     p = Path(path)
-    try:
-        with p.open("rb") as fh:
-            doc = tomllib.load(fh)
-    except FileNotFoundError:
-        raise ConfigError(str(p), "", "file not found") from None
-    except OSError as err:
-        raise ConfigError(str(p), "", f"cannot read file ({err.strerror})") from err
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError(str(p), "", f"not valid TOML ({err})") from err
+    doc = read_toml_document(p, error=ConfigError)
     for name, value in doc.items():
         if name not in KNOWN_SECTIONS:
             raise ConfigError(
@@ -125,6 +145,11 @@ def parse_section(doc: Mapping[str, Any], path: str | Path, section: str, cls: t
             if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
                 raise ConfigError(where, key, "missing required key")
             continue
+        cap = f.metadata.get("max_items")
+        if cap is not None and isinstance(table[name], list) and len(table[name]) > cap:
+            raise ConfigError(
+                where, key, f"{len(table[name])} entries, more than the {cap} allowed"
+            )
         value = _coerce(table[name], hints[name], where, key)
         check = f.metadata.get("check")
         if check is not None:
@@ -195,22 +220,23 @@ def _coerce(value: Any, hint: Any, where: str, key: str) -> Any:
 class BearingConfig:
     """Ball, raceway and material of one ball/raceway contact (seed Table 1)."""
 
-    ball_radius_m: float = field(metadata=positive())
-    raceway_radius_m: float = field(metadata=positive())
-    youngs_modulus_ball_Pa: float = field(metadata=positive())
-    youngs_modulus_raceway_Pa: float = field(metadata=positive())
+    ball_radius_m: float = field(metadata=in_range(1e-4, 0.05))
+    raceway_radius_m: float = field(metadata=in_range(1e-4, 1.0))
+    youngs_modulus_ball_Pa: float = field(metadata=in_range(1e8, 1.5e12))
+    youngs_modulus_raceway_Pa: float = field(metadata=in_range(1e8, 1.5e12))
     poisson_ratio_ball: float = field(metadata=in_range(0.0, 0.5, hi_open=True))
     poisson_ratio_raceway: float = field(metadata=in_range(0.0, 0.5, hi_open=True))
-    friction_coefficient: float = field(metadata=positive())
+    friction_coefficient: float = field(metadata=in_range(1e-6, 1.0))
     slip_exaggeration: float = field(default=1.0, metadata=in_range(1.0, 10.0))
 
     def problems(self) -> list[tuple[str, str]]:
-        if self.raceway_radius_m <= self.ball_radius_m:
+        if self.raceway_radius_m < MIN_GROOVE_RATIO * self.ball_radius_m:
             return [
                 (
                     "raceway_radius_m",
-                    f"must be > ball_radius_m ({self.raceway_radius_m:g} <= "
-                    f"{self.ball_radius_m:g}): a groove must be wider than the ball",
+                    f"must be >= {MIN_GROOVE_RATIO:g} x ball_radius_m "
+                    f"({self.raceway_radius_m:g} vs {self.ball_radius_m:g}): a groove must be "
+                    "wider than the ball (closer conformity has no Hertz solution)",
                 )
             ]
         return []
@@ -227,9 +253,9 @@ class StandConfig:
     0.5 per unit travel (docs/model.md, "Kinematics").
     """
 
-    ball_loads_N: tuple[float, ...] = field(metadata=positive())
-    carriage_velocity_m_s: float = field(default=0.01, metadata=positive())
-    rolling_distance_per_travel: float = field(default=0.5, metadata=positive())
+    ball_loads_N: tuple[float, ...] = field(metadata=in_range(1e-3, 1e5, max_items=MAX_BALL_LOADS))
+    carriage_velocity_m_s: float = field(default=0.01, metadata=in_range(1e-6, 10.0))
+    rolling_distance_per_travel: float = field(default=0.5, metadata=in_range(1e-3, 1.0))
 
 
 @dataclass(frozen=True)
@@ -250,7 +276,7 @@ class ModelConfig:
     lambda_min: float = field(default=1.0, metadata=in_range(1.0, 1e6))
     lambda_max: float = field(default=100.0, metadata=in_range(1.0, 1e6))
     lambda_count: int = field(default=25, metadata=in_range(2, 1000))
-    stop_velocity_m_s: float = field(default=1e-6, metadata=positive())
+    stop_velocity_m_s: float = field(default=1e-6, metadata=in_range(1e-12, 1e-2))
 
     def problems(self) -> list[tuple[str, str]]:
         if self.lambda_max <= self.lambda_min:

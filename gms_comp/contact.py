@@ -25,6 +25,11 @@ from scipy.special import ellipe, ellipk
 
 from .config import BearingConfig
 
+#: Largest contact semi-axis over the ball radius the model accepts. Hertz's half-space
+#: theory needs a contact small against the bodies; beyond half the ball radius the
+#: "ellipse" would wrap around the ball and every result built on it is meaningless.
+MAX_SEMI_AXIS_OVER_RADIUS = 0.5
+
 
 @dataclass(frozen=True)
 class HertzContact:
@@ -128,3 +133,26 @@ def hertz_contact(bearing: BearingConfig, normal_load_N: float) -> HertzContact:
         rx_m=rx,
         ry_m=ry,
     )
+
+
+def contact_problem(contact: HertzContact, ball_radius_m: float) -> str | None:
+    """Why ``contact`` lies outside the Hertz model's validity, or None when it is fine.
+
+    The semi-axes must be finite, positive and at most
+    :data:`MAX_SEMI_AXIS_OVER_RADIUS` of the ball radius.
+    """
+    sizes = (contact.a_m, contact.b_m, contact.p0_Pa, contact.approach_m)
+    if not all(math.isfinite(v) and v > 0.0 for v in sizes):
+        return (
+            f"a load of {contact.normal_load_N:g} N gives no finite Hertz contact "
+            f"(a = {contact.a_m:g} m, b = {contact.b_m:g} m)"
+        )
+    limit = MAX_SEMI_AXIS_OVER_RADIUS * ball_radius_m
+    if max(contact.a_m, contact.b_m) > limit:
+        return (
+            f"a load of {contact.normal_load_N:g} N makes a contact ellipse "
+            f"{2e3 * contact.b_m:.3g} mm wide on a {2e3 * ball_radius_m:.3g} mm ball "
+            f"(semi-axis > {MAX_SEMI_AXIS_OVER_RADIUS:g} x ball radius): outside the Hertz "
+            "model; lower the load or check the radii and moduli"
+        )
+    return None

@@ -1,6 +1,9 @@
 """One exception root for the project; every subclass also subclasses a builtin.
 
 The CLI turns any :class:`GmsCompError` into a one-line message and exit code 2.
+Bad input from outside is an :class:`InputError` (or one of its subclasses
+:class:`ConfigError`, :class:`TableError`, :class:`TraceError`): one line
+``SOURCE: FIELD: PROBLEM``.
 """
 
 from __future__ import annotations
@@ -10,7 +13,34 @@ class GmsCompError(Exception):
     """Root of all errors raised deliberately by gms-comp."""
 
 
-class ConfigError(GmsCompError, ValueError):
+class InputError(GmsCompError, ValueError):
+    """Bad input from outside: names its source, the field and the problem.
+
+    Parameters
+    ----------
+    source
+        The file or the command-line option the value came from.
+    field
+        The key, row or column inside the source ("" when the whole source is bad).
+    problem
+        What is wrong, and where useful what to do instead. Given alone (one
+        argument), ``source`` is taken as the complete message (older call sites).
+    """
+
+    def __init__(self, source: str, field: str = "", problem: str | None = None) -> None:
+        self.source = str(source)
+        self.field = field
+        if problem is None:
+            self.problem = self.source
+            super().__init__(" ".join(self.source.split()))
+            return
+        self.problem = problem
+        where = f"{self.source}: {field}" if field else self.source
+        # One line, whatever a parser or a file name put into the message.
+        super().__init__(" ".join(f"{where}: {problem}".split()))
+
+
+class ConfigError(InputError):
     """A configuration file is unreadable or holds a bad value.
 
     The message names the file, the key and the reason.
@@ -20,15 +50,14 @@ class ConfigError(GmsCompError, ValueError):
         self.path = path
         self.key = key
         self.reason = reason
-        where = f"{path}: {key}" if key else path
-        super().__init__(f"{where}: {reason}")
+        super().__init__(path, key, reason)
 
 
-class TableError(GmsCompError, ValueError):
+class TableError(InputError):
     """A GMS table file is truncated, of an unknown version, or holds bad values."""
 
 
-class TraceError(GmsCompError, ValueError):
+class TraceError(InputError):
     """A measured trace cannot be used (missing columns, NaN, time not increasing, ...)."""
 
 

@@ -105,7 +105,7 @@ class CompensatorConfig:
     look_ahead_cycles: int = field(default=1, metadata=in_range(0, 1000))
     table_path: str = ""
     friction_level_scale: float = field(default=1.0, metadata=positive())
-    current_limit_A: float = field(default=3.0, metadata=positive())
+    current_limit_A: float = field(default=3.0, metadata=in_range(1e-3, 1e3))
     rate_limit_A_per_s: float = field(default=2000.0, metadata=positive())
     coulomb_velocity_band_m_s: float = field(default=1e-4, metadata=positive())
     adaptation_rate_per_s: float = field(default=0.0, metadata=non_negative())

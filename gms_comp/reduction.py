@@ -42,11 +42,14 @@ import numpy as np
 from scipy.optimize import least_squares
 from tqdm import tqdm
 
-from .config import BallConfig, config_hash, in_range, parse_section, positive, read_toml
+from .config import BallConfig, config_hash, in_range, parse_section, read_toml
+from .contact import contact_problem, hertz_contact
+from .errors import ConfigError, InputError
 from .gms import FloatArray, GmsParams, element_shape, simulate
 from .profiles import seed_fig7_profile
 from .table import Fidelity, GmsTable, LoadFamily
 from .transient import BallSetFriction
+from .validation import MAX_FAMILY_LOADS, MAX_TABLE_ELEMENTS
 
 Path_ = tuple[FloatArray, FloatArray]
 Reference = tuple[Path_, FloatArray]
@@ -71,15 +74,17 @@ class TableConfig:
 
     elements: int = field(default=16, metadata=in_range(1, 1024))
     curve: Literal["virgin", "reversal"] = "virgin"
-    transition_velocity_m_s: float = field(default=1e-6, metadata=positive())
-    transition_exponent: float = field(default=2.0, metadata=positive())
+    transition_velocity_m_s: float = field(default=1e-6, metadata=in_range(1e-9, 0.1))
+    transition_exponent: float = field(default=2.0, metadata=in_range(0.1, 10.0))
     fit_slip_level: bool = True
     refinement_evaluations: int = field(default=60, metadata=in_range(1, 10_000))
     curve_points: int = field(default=300, metadata=in_range(20, 100_000))
-    sample_rate_Hz: float = field(default=20_000.0, metadata=positive())
-    random_reversals: int = field(default=30, metadata=in_range(1, 100_000))
+    sample_rate_Hz: float = field(default=20_000.0, metadata=in_range(100.0, 1e6))
+    random_reversals: int = field(default=30, metadata=in_range(1, 10_000))
     random_seed: int = 0
-    family_loads_N: tuple[float, ...] = field(default=(), metadata=positive())
+    family_loads_N: tuple[float, ...] = field(
+        default=(), metadata=in_range(1e-3, 1e5, max_items=MAX_FAMILY_LOADS)
+    )
 
 
 def load_table_config(path: str | Path) -> TableConfig:
@@ -297,6 +302,28 @@ def _at_ball_load(cfg: BallConfig, normal_load_N: float) -> BallConfig:
     return dataclasses.replace(cfg, stand=dataclasses.replace(cfg.stand, ball_loads_N=loads))
 
 
+def _check_request(cfg: BallConfig, n_elements: int, tc: TableConfig) -> None:
+    """Refuse an element count or family loads that bypassed the config's bounds
+    (command-line values), before any work is done."""
+    if isinstance(n_elements, bool) or not 1 <= n_elements <= MAX_TABLE_ELEMENTS:
+        raise InputError(
+            "elements", "", f"must be in [1, {MAX_TABLE_ELEMENTS}], got {n_elements!r}"
+        )
+    loads = tc.family_loads_N
+    if len(loads) > MAX_FAMILY_LOADS:
+        raise InputError(
+            "family loads", "", f"{len(loads)} loads, more than the {MAX_FAMILY_LOADS} allowed"
+        )
+    for i, load in enumerate(loads):
+        if not 1e-3 <= load <= 1e5:
+            raise ConfigError(
+                cfg.path, f"table.family_loads_N[{i}]", f"must be in [0.001, 100000], got {load!r}"
+            )
+        problem = contact_problem(hertz_contact(cfg.bearing, load), cfg.bearing.ball_radius_m)
+        if problem is not None:
+            raise ConfigError(cfg.path, f"table.family_loads_N[{i}]", problem)
+
+
 def reduce_to_gms(
     cfg: BallConfig,
     n_elements: int | None = None,
@@ -322,6 +349,7 @@ def reduce_to_gms(
     """
     tc = table_cfg if table_cfg is not None else load_table_config(cfg.path)
     n = n_elements if n_elements is not None else tc.elements
+    _check_request(cfg, n, tc)
     template = GmsParams(
         np.ones(1),
         np.ones(1),

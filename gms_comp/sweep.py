@@ -24,9 +24,8 @@ import copy
 import dataclasses
 import itertools
 import json
-import os
+import math
 import time
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,10 +35,18 @@ import numpy as np
 import tomli_w
 
 from . import __version__
+from .atomic import write_bytes, write_text
 from .config import config_hash, default_config_path, load_ball_config, read_toml
 from .errors import ConfigError, TableError
-from .scaleout import JobResult, run_jobs
+from .scaleout import JobResult, ScaleoutConfig, load_scaleout, run_jobs
 from .table import GmsTable, read_table, write_table
+from .validation import (
+    MAX_SWEEP_POINTS,
+    MAX_TABLE_BYTES,
+    parse_json,
+    read_text,
+    read_toml_document,
+)
 
 MANIFEST = "manifest.json"
 FAMILY_FORMAT = "gms-comp-family"
@@ -55,6 +62,7 @@ class SweepSpec:
     base_config: Path
     elements: int
     axes: tuple[tuple[str, tuple[Any, ...]], ...]
+    scaleout: ScaleoutConfig = dataclasses.field(default_factory=ScaleoutConfig)
 
     def grid(self) -> list[dict[str, Any]]:
         """Every point of the grid, as ``{dotted key: value}``, last axis fastest."""
@@ -68,17 +76,12 @@ class SweepSpec:
 def load_sweep(path: str | Path) -> SweepSpec:
     """Read and check a sweep file (errors name the file and the key)."""
     p = Path(path)
-    try:
-        doc = tomllib.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError(str(p), "", "file not found") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise ConfigError(str(p), "", f"cannot read file ({err})") from err
-    except tomllib.TOMLDecodeError as err:
-        raise ConfigError(str(p), "", f"not valid TOML ({err})") from err
+    doc = read_toml_document(p, error=ConfigError)
     sweep = doc.get("sweep")
-    if not isinstance(sweep, dict) or set(doc) != {"sweep"}:
-        raise ConfigError(str(p), "sweep", "a sweep file holds exactly one [sweep] table")
+    if not isinstance(sweep, dict) or not set(doc) <= {"sweep", "scaleout"}:
+        raise ConfigError(
+            str(p), "sweep", "a sweep file holds one [sweep] table (and optionally [scaleout])"
+        )
     unknown = set(sweep) - {"base_config", "elements", "axes"}
     if unknown:
         raise ConfigError(
@@ -103,6 +106,14 @@ def load_sweep(path: str | Path) -> SweepSpec:
         raise ConfigError(
             str(p), "sweep.axes", "must be a table of at least one 'section.key' = [values]"
         )
+    points = math.prod(len(v) if isinstance(v, list) else 1 for v in axes.values())
+    if points > MAX_SWEEP_POINTS:
+        raise ConfigError(
+            str(p),
+            "sweep.axes",
+            f"the grid has {points:.4g} points, more than the {MAX_SWEEP_POINTS} one sweep may "
+            "have; split it into several sweeps",
+        )
     base_doc = read_toml(base_path)
     parsed: list[tuple[str, tuple[Any, ...]]] = []
     for key, values in axes.items():
@@ -116,7 +127,7 @@ def load_sweep(path: str | Path) -> SweepSpec:
                 str(p), f"sweep.axes.{key}", f"is not a key of the base config {base_path}"
             )
         parsed.append((key, tuple(values)))
-    return SweepSpec(str(p), base_path, elements, tuple(parsed))
+    return SweepSpec(str(p), base_path, elements, tuple(parsed), load_scaleout(doc, p))
 
 
 def point_document(base_doc: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]:
@@ -185,7 +196,7 @@ def run_sweep(
     for index, values in enumerate(spec.grid()):
         cfg_path = points_dir / f"{index:04d}.toml"
         table_path = points_dir / f"{index:04d}.json"
-        cfg_path.write_bytes(tomli_w.dumps(point_document(base_doc, values)).encode())
+        write_bytes(cfg_path, tomli_w.dumps(point_document(base_doc, values)).encode())
         sha = config_hash(cfg_path)
         row: dict[str, Any] = {
             "index": index,
@@ -238,21 +249,21 @@ def run_sweep(
 
 
 def _write_manifest(out: Path, manifest: Mapping[str, Any]) -> None:
-    tmp = out / (MANIFEST + ".tmp")
-    tmp.write_text(json.dumps(manifest, indent=2) + "\n", encoding="utf-8")
-    os.replace(tmp, out / MANIFEST)
+    write_text(out / MANIFEST, json.dumps(manifest, indent=2) + "\n")
 
 
 def read_manifest(family_dir: str | Path) -> dict[str, Any]:
     """Load a family's manifest, refusing files of another format or version."""
     path = Path(family_dir) / MANIFEST
-    try:
-        manifest = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise TableError(f"{path}: no manifest (is this a table family folder?)") from None
-    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise TableError(f"{path}: unreadable manifest ({err})") from err
-    if manifest.get("format") != FAMILY_FORMAT or manifest.get("version") != FAMILY_VERSION:
+    if not path.is_file():
+        raise TableError(f"{path}: no manifest (is this a table family folder?)")
+    text = read_text(path, max_bytes=4 * MAX_TABLE_BYTES, what="manifest", error=TableError)
+    manifest = parse_json(text, str(path), error=TableError)
+    if (
+        not isinstance(manifest, dict)
+        or manifest.get("format") != FAMILY_FORMAT
+        or manifest.get("version") != FAMILY_VERSION
+    ):
         raise TableError(f"{path}: not a {FAMILY_FORMAT} manifest of version {FAMILY_VERSION}")
     return dict(manifest)
 

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -33,8 +32,17 @@ from typing import Any
 import numpy as np
 
 from . import __version__
+from .atomic import write_text
 from .errors import TableError
 from .gms import FloatArray, GmsParams
+from .validation import (
+    MAX_FAMILY_LOADS,
+    MAX_TABLE_BYTES,
+    MAX_TABLE_ELEMENTS,
+    check_count,
+    parse_json,
+    read_text,
+)
 
 FORMAT = "gms-comp-table"
 FORMAT_VERSION = 1
@@ -49,6 +57,16 @@ UNITS = {
 }
 _VERSION = re.compile(r"^(\d+)\.(\d+)\.(\d+)")
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+#: Upper bounds of a table's numbers: far above any linear guide, low enough that the
+#: observer's arithmetic (k_i z_i, sums over elements) stays finite.
+MAX_STIFFNESS_N_PER_M = 1e12
+MAX_FORCE_N = 1e6
+MAX_VISCOUS_NS_PER_M = 1e7
+MAX_SLIP_LEVEL = 10.0
+MAX_TRANSITION_VELOCITY_M_S = 1.0
+MAX_TRANSITION_EXPONENT = 10.0
+MAX_ATTRACTION_RATE_PER_S = 1e9
 
 
 @dataclass(frozen=True)
@@ -142,11 +160,8 @@ def table_to_dict(table: GmsTable) -> dict[str, Any]:
 
 def write_table(path: str | Path, table: GmsTable) -> None:
     """Write ``table`` as JSON; the file is replaced atomically."""
-    p = Path(path)
     text = json.dumps(table_to_dict(table), indent=1, allow_nan=False)
-    tmp = p.with_name(p.name + ".tmp")
-    tmp.write_text(text + "\n", encoding="utf-8")
-    os.replace(tmp, p)
+    write_text(path, text + "\n")
 
 
 # --- reading ----------------------------------------------------------------------------
@@ -155,23 +170,9 @@ def write_table(path: str | Path, table: GmsTable) -> None:
 def read_table(path: str | Path) -> GmsTable:
     """Read and validate a table file; any defect raises :class:`TableError`."""
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise TableError(f"{p}: file not found") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise TableError(f"{p}: cannot read file ({err})") from err
-    try:
-        doc = json.loads(text, parse_constant=_refuse_constant)
-    except json.JSONDecodeError as err:
-        raise TableError(f"{p}: truncated or not JSON ({err})") from err
-    except ValueError as err:
-        raise TableError(f"{p}: {err}") from err
+    text = read_text(p, max_bytes=MAX_TABLE_BYTES, what="table file", error=TableError)
+    doc = parse_json(text, str(p), error=TableError)
     return table_from_dict(doc, str(p))
-
-
-def _refuse_constant(name: str) -> float:
-    raise ValueError(f"non-finite number {name} is not allowed")
 
 
 def table_from_dict(doc: Any, where: str) -> GmsTable:
@@ -191,22 +192,27 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
     n = r.get(doc, "elements")
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise r.error("elements", f"must be a positive integer, got {n!r}")
-    k = r.vector(r.get(doc, "stiffness_N_per_m"), "stiffness_N_per_m", n, positive=True)
-    w = r.vector(r.get(doc, "limit_N"), "limit_N", n, positive=False)
+    check_count(where, "elements", n, MAX_TABLE_ELEMENTS, "elements", error=TableError)
+    k = r.vector(
+        r.get(doc, "stiffness_N_per_m"), "stiffness_N_per_m", n, True, MAX_STIFFNESS_N_PER_M
+    )
+    w = r.vector(r.get(doc, "limit_N"), "limit_N", n, False, MAX_FORCE_N)
     level = r.get(doc, "velocity_level")
     rate = r.get(doc, "attraction_rate_per_s")
     params = GmsParams(
         k,
         w,
-        slip_level=r.number(level, "velocity_level.slip_level", positive=True),
+        slip_level=r.number(level, "velocity_level.slip_level", True, MAX_SLIP_LEVEL),
         transition_velocity_m_s=r.number(
-            level, "velocity_level.transition_velocity_m_s", positive=True
+            level, "velocity_level.transition_velocity_m_s", True, MAX_TRANSITION_VELOCITY_M_S
         ),
-        transition_exponent=r.number(level, "velocity_level.transition_exponent", positive=True),
+        transition_exponent=r.number(
+            level, "velocity_level.transition_exponent", True, MAX_TRANSITION_EXPONENT
+        ),
         attraction_rate_per_s=math.inf
         if rate is None
-        else r.number(doc, "attraction_rate_per_s", positive=True),
-        viscous_Ns_per_m=r.number(doc, "viscous_Ns_per_m", positive=False),
+        else r.number(doc, "attraction_rate_per_s", True, MAX_ATTRACTION_RATE_PER_S),
+        viscous_Ns_per_m=r.number(doc, "viscous_Ns_per_m", False, MAX_VISCOUS_NS_PER_M),
     )
     source = r.get(doc, "source")
     fidelity = r.get(doc, "fidelity")
@@ -215,8 +221,8 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
         source_config=r.string(source, "source.config"),
         source_sha256=r.sha256(source, "source.sha256"),
         fidelity=Fidelity(
-            rms_rel=r.number(fidelity, "fidelity.rms_rel", positive=False),
-            max_rel=r.number(fidelity, "fidelity.max_rel", positive=False),
+            rms_rel=r.number(fidelity, "fidelity.rms_rel", False, math.inf),
+            max_rel=r.number(fidelity, "fidelity.max_rel", False, math.inf),
         ),
         version=version,
         load_family=r.load_family(doc, n),
@@ -231,7 +237,7 @@ class _Reader:
         self.where = where
 
     def error(self, key: str, reason: str) -> TableError:
-        return TableError(f"{self.where}: {key}: {reason}" if key else f"{self.where}: {reason}")
+        return TableError(self.where, key, reason)
 
     def get(self, obj: Any, key: str) -> Any:
         """``obj[last part of key]``; a missing key is reported with its full name."""
@@ -243,24 +249,26 @@ class _Reader:
             raise self.error(key, "missing")
         return obj[name]
 
-    def number(self, obj: Any, key: str, *, positive: bool) -> float:
-        return self.check_number(self.get(obj, key), key, positive=positive)
+    def number(self, obj: Any, key: str, positive: bool, hi: float) -> float:
+        return self.check_number(self.get(obj, key), key, positive, hi)
 
-    def check_number(self, value: Any, key: str, *, positive: bool) -> float:
-        """A finite number, > 0 when ``positive`` else >= 0 (refuses NaN and negatives)."""
+    def check_number(self, value: Any, key: str, positive: bool, hi: float) -> float:
+        """A finite number, > 0 when ``positive`` else >= 0, and <= ``hi``."""
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(key, f"must be a number, got {value!r}")
         bad = value <= 0 if positive else value < 0
         if not math.isfinite(value) or bad:
             raise self.error(key, f"must be {'> 0' if positive else '>= 0'}, got {value!r}")
+        if value > hi:
+            raise self.error(key, f"must be <= {hi:g}, got {value!r}")
         return float(value)
 
-    def vector(self, value: Any, key: str, n: int | None, *, positive: bool) -> FloatArray:
+    def vector(self, value: Any, key: str, n: int | None, positive: bool, hi: float) -> FloatArray:
         """A list of ``n`` numbers (any non-zero length when ``n`` is None)."""
         if not isinstance(value, list) or not value or (n is not None and len(value) != n):
             raise self.error(key, f"must be a list of {n or 'some'} numbers")
         return np.array(
-            [self.check_number(v, f"{key}[{i}]", positive=positive) for i, v in enumerate(value)]
+            [self.check_number(v, f"{key}[{i}]", positive, hi) for i, v in enumerate(value)]
         )
 
     def string(self, obj: Any, key: str) -> str:
@@ -289,21 +297,24 @@ class _Reader:
         if family is None:
             return None
         key = "load_family.normal_load_N"
-        loads = self.vector(self.get(family, key), key, None, positive=True)
+        loads = self.get(family, key)
+        if isinstance(loads, list):
+            check_count(self.where, key, len(loads), MAX_FAMILY_LOADS, "loads", error=TableError)
+        loads = self.vector(loads, key, None, True, MAX_FORCE_N)
         if np.any(np.diff(loads) <= 0):
             raise self.error(key, "must be increasing")
         rows = []
-        for name, positive in (("stiffness_N_per_m", True), ("limit_N", False)):
+        for name, positive, hi in (
+            ("stiffness_N_per_m", True, MAX_STIFFNESS_N_PER_M),
+            ("limit_N", False, MAX_FORCE_N),
+        ):
             key = f"load_family.{name}"
             value = self.get(family, key)
             if not isinstance(value, list) or len(value) != loads.size:
                 raise self.error(key, f"must hold {loads.size} rows")
             rows.append(
                 np.array(
-                    [
-                        self.vector(v, f"{key}[{i}]", n, positive=positive)
-                        for i, v in enumerate(value)
-                    ]
+                    [self.vector(v, f"{key}[{i}]", n, positive, hi) for i, v in enumerate(value)]
                 )
             )
         return LoadFamily(loads, rows[0], rows[1])
@@ -312,6 +323,7 @@ class _Reader:
         items = doc.get("extensions", [])
         if not isinstance(items, list):
             raise self.error("extensions", "must be a list")
+        check_count(self.where, "extensions", len(items), 64, "extensions", error=TableError)
         out = []
         for i, item in enumerate(items):
             key = f"extensions.{i}"
@@ -328,8 +340,8 @@ class _Reader:
                     raise self.error(pkey, "parameter names must be names")
                 if isinstance(value, bool) or not isinstance(value, (int, float)):
                     raise self.error(pkey, f"must be a number, got {value!r}")
-                if not math.isfinite(value):
-                    raise self.error(pkey, f"must be finite, got {value!r}")
+                if not math.isfinite(value) or abs(value) > 1e12:
+                    raise self.error(pkey, f"must be finite and within +-1e12, got {value!r}")
                 values[name] = float(value)
             out.append(Extension(effect, values))
         return tuple(out)

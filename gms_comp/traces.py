@@ -3,9 +3,12 @@
 A trace is one sampled record of an axis: time, position and a force that is either a
 friction force (a test stand's force sensor) or a drive force (force constant x current,
 inertia included). Files are untrusted input: every problem raises :class:`TraceError`
-with one line naming the file, the row or column and what is wrong. Unit slips that can
-be detected (a stroke of hundreds of metres in a ``_m`` column) give a
-:class:`TraceUnitWarning` that says what was assumed.
+with one line naming the file, the row or column and what is wrong. Sizes are checked
+before anything is allocated: a CSV file's bytes and rows, a MATLAB variable's declared
+shape (read with :func:`scipy.io.whosmat` before the variable is loaded). Unit slips that
+can be detected (a stroke of hundreds of metres in a ``_m`` column) are refused with a
+message that says what the name implies and how to map the column instead
+(``--map position_m=pos_mm*0.001``): a wrong unit would only give a wrong diagnosis.
 
 A mapping names, for each canonical column, a product of source columns (or MATLAB
 variables) and numbers, e.g. ``{"force_N": "gtau*vir", "position_m": "pos_mm*0.001"}``.
@@ -18,7 +21,6 @@ from __future__ import annotations
 import csv
 import math
 import re
-import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,7 +29,9 @@ from typing import Literal
 import numpy as np
 import scipy.io
 
+from .atomic import atomic_path
 from .errors import TraceError
+from .validation import MAX_TRACE_BYTES, MAX_TRACE_SAMPLES
 
 ForceKind = Literal["friction", "drive"]
 
@@ -52,10 +56,12 @@ MAX_PLAUSIBLE_SPEED_M_S = 20.0
 MIN_MOTION_M = 1e-9
 
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+#: Columns of a CSV trace (the canonical ones need 7; extra columns are read and ignored).
+MAX_TRACE_COLUMNS = 64
 
 
 class TraceUnitWarning(UserWarning):
-    """A column's values look like a different unit than its name says."""
+    """Kept for callers that filter it; unit slips are now refused with a TraceError."""
 
 
 @dataclass(frozen=True)
@@ -146,28 +152,33 @@ def load_trace(
     suffix = p.suffix.lower()
     if suffix == ".csv":
         columns, lines = _read_csv(p)
-        trace = _build(p, _evaluate(p, columns, mapping or _identity(columns)), None)
+        mapping = mapping or _identity(columns)
+        trace = _build(p, _evaluate(p, columns, mapping), None)
 
         def where(index: int) -> str:
             return f"row {lines[index]}"
 
     elif suffix == ".mat":
-        variables = _read_mat(p)
+        declared = _declared_mat_shapes(p)
         kind: ForceKind | None = None
         if mapping is None:
-            if not variables.keys() >= EMPS_VARIABLES:
-                missing = ", ".join(sorted(EMPS_VARIABLES - variables.keys()))
+            if not declared.keys() >= EMPS_VARIABLES:
+                missing = ", ".join(sorted(EMPS_VARIABLES - declared.keys()))
                 raise TraceError(
                     f"{p}: not an EMPS record (missing variables {missing}); "
                     "give a column mapping (--map COLUMN=VARIABLE)"
                 )
-            mapping = {k: v for k, v in EMPS_MAPPING.items() if v in variables or "*" in v}
+            mapping = {k: v for k, v in EMPS_MAPPING.items() if v in declared or "*" in v}
             kind = "drive"
+        needed = sorted(
+            {f for expr in mapping.values() for f in _factors(expr, str(p)) if isinstance(f, str)}
+        )
+        variables = _read_mat(p, [n for n in needed if n in declared], declared)
         trace = _build(p, _evaluate(p, variables, mapping), kind)
         where = _mat_sample
     else:
         raise TraceError(f"{p}: unknown trace format {p.suffix!r} (expected .csv or .mat)")
-    _validate(trace, min_samples, where)
+    _validate(trace, min_samples, where, mapping)
     return trace
 
 
@@ -175,7 +186,8 @@ def write_trace(path: str | Path, trace: Trace) -> None:
     """Write ``trace`` as canonical CSV (only the columns it holds)."""
     names = [n for n in CANONICAL_COLUMNS if getattr(trace, n) is not None]
     data = np.column_stack([getattr(trace, n) for n in names])
-    np.savetxt(path, data, delimiter=",", header=",".join(names), comments="", fmt="%.12g")
+    with atomic_path(path) as tmp:
+        np.savetxt(tmp, data, delimiter=",", header=",".join(names), comments="", fmt="%.12g")
 
 
 # --- reading -----------------------------------------------------------------------------
@@ -184,6 +196,11 @@ def write_trace(path: str | Path, trace: Trace) -> None:
 def _read_csv(path: Path) -> tuple[dict[str, np.ndarray], list[int]]:
     """Columns of a CSV file as float arrays (the header row names them) and the file's
     line number of each sample, for error messages."""
+    size = path.stat().st_size
+    if size > MAX_TRACE_BYTES:
+        raise TraceError(
+            str(path), "", f"{size} bytes, more than the {MAX_TRACE_BYTES} a CSV trace may have"
+        )
     try:
         with path.open(newline="", encoding="utf-8") as fh:
             reader = csv.reader(fh)
@@ -191,6 +208,10 @@ def _read_csv(path: Path) -> tuple[dict[str, np.ndarray], list[int]]:
             if header is None:
                 raise TraceError(f"{path}: empty file (expected a header row)")
             header = [h.strip() for h in header]
+            if len(header) > MAX_TRACE_COLUMNS:
+                raise TraceError(
+                    str(path), "row 1", f"{len(header)} columns, more than {MAX_TRACE_COLUMNS}"
+                )
             if len(set(header)) != len(header):
                 raise TraceError(f"{path}: row 1: duplicate column names in the header")
             values: list[list[float]] = []
@@ -199,6 +220,12 @@ def _read_csv(path: Path) -> tuple[dict[str, np.ndarray], list[int]]:
                 if not row or all(not c.strip() for c in row):
                     continue
                 lines.append(line)
+                if len(lines) > MAX_TRACE_SAMPLES:
+                    raise TraceError(
+                        str(path),
+                        f"row {line}",
+                        f"more than {MAX_TRACE_SAMPLES} samples; cut the record into parts",
+                    )
                 if len(row) != len(header):
                     raise TraceError(
                         f"{path}: row {line}: {len(row)} cells, the header has {len(header)}"
@@ -222,14 +249,56 @@ def _number(path: Path, line: int, column: str, cell: str) -> float:
     return value
 
 
-def _read_mat(path: Path) -> dict[str, np.ndarray]:
-    """Numeric variables of a MATLAB file (v4-v7); others are ignored."""
+def _declared_mat_shapes(path: Path) -> dict[str, tuple[int, ...]]:
+    """Each variable's declared shape, read from the file's headers before any data."""
     try:
-        raw = scipy.io.loadmat(str(path))
-    except NotImplementedError as err:  # scipy's signal for an HDF5-based v7.3 file
-        raise TraceError(f"{path}: MATLAB v7.3 files are not supported; save with -v7") from err
-    except (ValueError, TypeError, OSError) as err:
-        raise TraceError(f"{path}: not a readable MATLAB file ({err})") from err
+        listing = scipy.io.whosmat(str(path))
+    except NotImplementedError:  # scipy's signal for an HDF5-based v7.3 file
+        raise TraceError(f"{path}: MATLAB v7.3 files are not supported; save with -v7") from None
+    except Exception as err:  # scipy raises many kinds on a corrupt header
+        raise TraceError(
+            f"{path}: not a readable MATLAB file ({type(err).__name__}: {err})"
+        ) from None
+    return {name: tuple(int(d) for d in shape) for name, shape, _cls in listing}
+
+
+def _read_mat(
+    path: Path, names: Sequence[str], declared: Mapping[str, tuple[int, ...]]
+) -> dict[str, np.ndarray]:
+    """The numeric variables ``names`` of a MATLAB file (v4-v7), sizes checked first.
+
+    A variable must be a vector (or a 1x1 scalar such as EMPS's ``gtau``) of at most
+    :data:`~gms_comp.validation.MAX_TRACE_SAMPLES` elements by its declared shape.
+    """
+    for name in names:
+        shape = declared[name]
+        size = math.prod(shape)
+        if size > MAX_TRACE_SAMPLES:
+            dims = "x".join(map(str, shape))
+            raise TraceError(
+                str(path),
+                f"variable {name}",
+                f"declares {dims} = {size} elements, more than the {MAX_TRACE_SAMPLES} "
+                "samples a trace may have (checked before loading)",
+            )
+        if sum(d > 1 for d in shape) > 1:
+            dims = "x".join(map(str, shape))
+            raise TraceError(
+                str(path),
+                f"variable {name}",
+                f"is a {dims} matrix, a trace variable must be a vector; save each "
+                "channel as its own vector and map it (--map COLUMN=VARIABLE)",
+            )
+    if not names:
+        return {}
+    try:
+        raw = scipy.io.loadmat(str(path), variable_names=list(names))
+    except NotImplementedError:
+        raise TraceError(f"{path}: MATLAB v7.3 files are not supported; save with -v7") from None
+    except Exception as err:  # a corrupt body after a readable header
+        raise TraceError(
+            f"{path}: not a readable MATLAB file ({type(err).__name__}: {err})"
+        ) from None
     out: dict[str, np.ndarray] = {}
     for name, value in raw.items():
         if name.startswith("__") or not isinstance(value, np.ndarray):
@@ -303,7 +372,12 @@ def _mat_sample(index: int) -> str:
     return f"sample {index + 1}"
 
 
-def _validate(trace: Trace, min_samples: int, where: Callable[[int], str]) -> None:
+def _validate(
+    trace: Trace,
+    min_samples: int,
+    where: Callable[[int], str],
+    mapping: Mapping[str, str],
+) -> None:
     src = trace.source
     n = len(trace)
     if n < min_samples:
@@ -327,19 +401,35 @@ def _validate(trace: Trace, min_samples: int, where: Callable[[int], str]) -> No
     if stroke < MIN_MOTION_M:
         raise TraceError(f"{src}: column position_m: no motion (stroke {stroke:.3g} m)")
     if stroke > MAX_PLAUSIBLE_STROKE_M:
-        guess = "um" if stroke > 1e3 * MAX_PLAUSIBLE_STROKE_M else "mm"
-        warnings.warn(
-            f"{src}: column position_m spans {stroke:.4g} m, which looks like {guess}; "
-            "assumed metres as the column name says",
-            TraceUnitWarning,
-            stacklevel=3,
+        micro = stroke > 1e3 * MAX_PLAUSIBLE_STROKE_M
+        raise TraceError(
+            src,
+            "column position_m",
+            f"spans {stroke:.4g} m, more than the {MAX_PLAUSIBLE_STROKE_M:g} m stroke of any "
+            f"axis served: it looks like {'um' if micro else 'mm'} although the name says "
+            "metres; map the column with its scale, e.g. "
+            f"--map position_m={_scaled(mapping, 'position_m', 1e-6 if micro else 1e-3)}",
         )
     if trace.velocity_m_s is not None:
         speed = float(np.max(np.abs(trace.velocity_m_s)))
         if speed > MAX_PLAUSIBLE_SPEED_M_S:
-            warnings.warn(
-                f"{src}: column velocity_m_s reaches {speed:.4g} m/s, which looks like mm/s; "
-                "assumed m/s as the column name says",
-                TraceUnitWarning,
-                stacklevel=3,
+            raise TraceError(
+                src,
+                "column velocity_m_s",
+                f"reaches {speed:.4g} m/s, more than the {MAX_PLAUSIBLE_SPEED_M_S:g} m/s of "
+                "any axis served: it looks like mm/s although the name says m/s; map the "
+                f"column with its scale, e.g. "
+                f"--map velocity_m_s={_scaled(mapping, 'velocity_m_s', 1e-3)}",
             )
+        if float(np.ptp(trace.velocity_m_s)) == 0.0:
+            raise TraceError(
+                src,
+                "column velocity_m_s",
+                f"is constant ({trace.velocity_m_s[0]:g} m/s) while the position moves "
+                f"{stroke:.3g} m: not a velocity signal; map the right column or leave it out",
+            )
+
+
+def _scaled(mapping: Mapping[str, str], column: str, factor: float) -> str:
+    """The mapping expression of ``column`` times ``factor``, for a suggestion."""
+    return f"{mapping.get(column, column)}*{factor:g}"

@@ -1,8 +1,14 @@
 """One validation layer for everything that comes from outside.
 
 Configs, tables, traces, sweep files and command-line values are untrusted. Every
-refusal is an :class:`InputError`: one line ``SOURCE: FIELD: PROBLEM`` (the file or
-the option, the key/row/column, what is wrong), turned by the CLI into exit code 2.
+refusal is an :class:`InputError` (or a subclass: ``ConfigError``, ``TableError``,
+``TraceError``): one line ``SOURCE: FIELD: PROBLEM`` (the file or the option, the
+key/row/column, what is wrong), turned by the CLI into exit code 2.
+
+Resources are bounded before they are spent: a file is measured before it is read,
+decoded as strict UTF-8, its bracket nesting counted before a parser recurses into it,
+and element, sample, point and load counts are compared with the caps below before any
+array is made. docs/limits.md lists every bound (a test keeps it in step with the code).
 
 The command-line helpers here check output paths when the arguments are parsed, so that
 a run never computes for minutes and then fails to write its result.
@@ -11,21 +17,206 @@ a run never computes for minutes and then fails to write its result.
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import os
+import re
+import tomllib
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
-from .errors import GmsCompError
+from .errors import ConfigError, InputError
+
+#: A config or sweep file larger than this is refused before it is parsed.
+MAX_CONFIG_BYTES = 4 << 20
+#: A table file larger than this is refused before it is parsed (a 1024-element table
+#: with a 64-load family is about 2 MB).
+MAX_TABLE_BYTES = 32 << 20
+#: A CSV trace larger than this is refused before it is read.
+MAX_TRACE_BYTES = 256 << 20
+#: Samples of a trace (CSV rows, or a MATLAB variable's declared size before loading):
+#: about 200 s at 10 kHz; every column costs 8 bytes per sample, the CSV reader ~30.
+MAX_TRACE_SAMPLES = 2_000_000
+#: Bracket nesting in a TOML or JSON document (ours need 3; parsers recurse per level).
+MAX_NESTING_DEPTH = 16
+#: Elements of a GMS table (the reduction fits at most [table] elements' upper bound).
+MAX_TABLE_ELEMENTS = 1024
+#: Ball loads of one ball set (a carriage has tens of balls; each distinct load costs a
+#: steady-state search).
+MAX_BALL_LOADS = 1024
+#: Loads of a table's load family (each one a full refit).
+MAX_FAMILY_LOADS = 64
+#: Points of a sweep grid (each a table fit of seconds to minutes).
+MAX_SWEEP_POINTS = 10_000
+#: Worker processes of a local Dask cluster.
+MAX_WORKERS = 256
+
+ErrorType = Callable[[str, str, str], InputError]
 
 
-class InputError(GmsCompError, ValueError):
-    """Bad input from outside: names its source, the field and the problem."""
+def read_text(
+    path: str | os.PathLike[str],
+    *,
+    max_bytes: int,
+    what: str = "file",
+    error: ErrorType = InputError,
+) -> str:
+    """The UTF-8 text of ``path``, refusing a missing, oversized or non-UTF-8 file.
 
-    def __init__(self, source: str, field: str, problem: str) -> None:
-        self.source = str(source)
-        self.field = field
-        self.problem = problem
-        where = f"{self.source}: {field}" if field else self.source
-        super().__init__(f"{where}: {problem}")
+    The size is taken from the file system before anything is read.
+    """
+    p = Path(path)
+    try:
+        size = p.stat().st_size
+        if not p.is_file():
+            raise error(str(p), "", f"is not a {what} (a folder or a device)")
+        if size > max_bytes:
+            raise error(str(p), "", f"{size} bytes, more than the {max_bytes} a {what} may have")
+        data = p.read_bytes()
+    except FileNotFoundError:
+        raise error(str(p), "", "file not found") from None
+    except OSError as err:
+        raise error(str(p), "", f"cannot read file ({err.strerror})") from None
+    return decode_utf8(data, str(p), error=error)
+
+
+def decode_utf8(data: bytes, source: str, *, error: ErrorType = InputError) -> str:
+    """``data`` decoded as strict UTF-8; a bad byte is reported with its line."""
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line = data[: err.start].count(b"\n") + 1
+        raise error(
+            source, f"line {line}", f"byte 0x{data[err.start]:02x} is not UTF-8 text"
+        ) from None
+    if "\x00" in text:
+        line = text[: text.index("\x00")].count("\n") + 1
+        raise error(source, f"line {line}", "holds a NUL character: not a text file")
+    return text
+
+
+def nesting_depth(text: str) -> int:
+    """Deepest nesting of ``[``/``{`` outside strings and comments (TOML and JSON)."""
+    depth = deepest = 0
+    quote = ""
+    escaped = comment = False
+    for ch in text:
+        if comment:
+            comment = ch != "\n"
+        elif quote:
+            if escaped:
+                escaped = False
+            elif ch == "\\" and quote == '"':
+                escaped = True
+            elif ch == quote:
+                quote = ""
+        elif ch in "\"'":
+            quote = ch
+        elif ch == "#":
+            comment = True
+        elif ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in "]}":
+            depth -= 1
+    return deepest
+
+
+def _check_depth(text: str, source: str, error: ErrorType) -> None:
+    depth = nesting_depth(text)
+    if depth > MAX_NESTING_DEPTH:
+        raise error(source, "", f"brackets nested {depth} deep, more than {MAX_NESTING_DEPTH}")
+
+
+def read_toml_document(
+    path: str | os.PathLike[str], *, error: ErrorType = ConfigError
+) -> dict[str, Any]:
+    """Parse a TOML file within the size, encoding and nesting bounds."""
+    text = read_text(path, max_bytes=MAX_CONFIG_BYTES, what="config file", error=error)
+    _check_depth(text, str(path), error)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise error(str(path), "", f"not valid TOML ({err})") from None
+    except RecursionError:
+        raise error(str(path), "", "nested too deeply to parse") from None
+
+
+def parse_json(text: str, source: str, *, error: ErrorType = InputError) -> Any:
+    """Parse JSON text, refusing NaN/Infinity and documents nested too deeply."""
+    _check_depth(text, source, error)
+    try:
+        return json.loads(text, parse_constant=_refuse_constant)
+    except json.JSONDecodeError as err:
+        raise error(source, "", f"truncated or not JSON ({err})") from None
+    except RecursionError:
+        raise error(source, "", "nested too deeply to parse") from None
+    except ValueError as err:
+        raise error(source, "", str(err)) from None
+
+
+def _refuse_constant(name: str) -> float:
+    raise ValueError(f"non-finite number {name} is not allowed")
+
+
+def check_count(
+    source: str, field: str, count: int, cap: int, what: str, *, error: ErrorType = InputError
+) -> None:
+    """Refuse ``count`` items of ``what`` when it exceeds ``cap`` (before allocating them)."""
+    if count > cap:
+        raise error(source, field, f"{count} {what}, more than the {cap} allowed")
+
+
+# --- command-line value types ----------------------------------------------------------
+
+
+def int_in_range(lo: int, hi: int) -> Callable[[str], int]:
+    """An argparse ``type``: an integer in [lo, hi]."""
+
+    def parse(value: str) -> int:
+        try:
+            number = int(value)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be an integer, got {value!r}") from None
+        if not lo <= number <= hi:
+            raise argparse.ArgumentTypeError(f"must be in [{lo}, {hi}], got {number}")
+        return number
+
+    parse.__name__ = "integer"
+    return parse
+
+
+def float_in_range(lo: float, hi: float) -> Callable[[str], float]:
+    """An argparse ``type``: a finite number in [lo, hi]."""
+
+    def parse(value: str) -> float:
+        try:
+            number = float(value)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be a number, got {value!r}") from None
+        if not (math.isfinite(number) and lo <= number <= hi):
+            raise argparse.ArgumentTypeError(f"must be in [{lo:g}, {hi:g}], got {value}")
+        return number
+
+    parse.__name__ = "number"
+    return parse
+
+
+_ADDRESS = re.compile(r"^(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+)(:(\d{1,5}))?$")
+
+
+def scheduler_address(value: str) -> str:
+    """An argparse ``type``: a Dask scheduler address ``tcp://host:port`` or ``tls://...``."""
+    found = _ADDRESS.match(value.strip())
+    if found is None:
+        raise argparse.ArgumentTypeError(
+            f"{value!r} is not a scheduler address (expected tls://HOST:PORT or tcp://HOST:PORT)"
+        )
+    port = found.group(4)
+    if port is not None and not 0 < int(port) < 65536:
+        raise argparse.ArgumentTypeError(f"{value!r}: port must be in [1, 65535]")
+    return value.strip()
 
 
 def output_file(value: str) -> Path:

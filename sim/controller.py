@@ -49,7 +49,7 @@ MEASURED_VELOCITY = _MEASURED + 2  # where the measured velocity estimate sits
 class ControllerConfig:
     """The ``[controller]`` section."""
 
-    servo_rate_Hz: float = field(default=4000.0, metadata=positive())
+    servo_rate_Hz: float = field(default=4000.0, metadata=in_range(100.0, 1e5))
     position_bandwidth_Hz: float = field(default=30.0, metadata=positive())
     velocity_bandwidth_Hz: float = field(default=150.0, metadata=positive())
     integral_corner_Hz: float = field(default=30.0, metadata=positive())

@@ -88,9 +88,9 @@ class PlantConfig:
     four-ball stand: four carriages, four ball rows each, ten loaded balls per row).
     """
 
-    moving_mass_kg: float = field(default=30.0, metadata=positive())
-    force_constant_N_per_A: float = field(default=60.0, metadata=positive())
-    current_limit_A: float = field(default=10.0, metadata=positive())
+    moving_mass_kg: float = field(default=30.0, metadata=in_range(1e-3, 1e4))
+    force_constant_N_per_A: float = field(default=60.0, metadata=in_range(1e-2, 1e4))
+    current_limit_A: float = field(default=10.0, metadata=in_range(1e-3, 1e3))
     current_loop_bandwidth_Hz: float = field(default=1500.0, metadata=positive())
     current_loop_order: Literal[1, 2] = 1
     current_loop_damping: float = field(default=0.7, metadata=in_range(0.05, 5.0))

@@ -53,15 +53,15 @@ class ScenarioConfig:
 
     trajectory: Literal["circle", "sine", "step_stop"] = "circle"
     circle_axis: Literal["x", "y", "xy"] = "x"
-    radius_m: float = field(default=0.01, metadata=positive())
-    feed_m_s: float = field(default=0.02, metadata=positive())
-    revolutions: float = field(default=1.0, metadata=positive())
+    radius_m: float = field(default=0.01, metadata=in_range(1e-6, 1.0))
+    feed_m_s: float = field(default=0.02, metadata=in_range(1e-6, 10.0))
+    revolutions: float = field(default=1.0, metadata=in_range(1e-3, 1e3))
     amplitude_m: float = field(default=1e-3, metadata=positive())
-    frequency_Hz: float = field(default=2.0, metadata=positive())
-    periods: float = field(default=2.0, metadata=positive())
+    frequency_Hz: float = field(default=2.0, metadata=in_range(1e-3, 1e3))
+    periods: float = field(default=2.0, metadata=in_range(1e-3, 1e3))
     acceleration_window_s: float = field(default=0.01, metadata=positive())
     jerk_window_s: float = field(default=0.005, metadata=positive())
-    dwell_s: float = field(default=0.2, metadata=positive())
+    dwell_s: float = field(default=0.2, metadata=in_range(1e-4, 60.0))
     transport_delay_cycles: int = field(default=1, metadata=in_range(0, 1000))
     reversal_window_s: float = field(default=0.15, metadata=positive())
     min_stop_s: float = field(default=0.01, metadata=positive())

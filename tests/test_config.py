@@ -25,18 +25,28 @@ def _drop(text: str, key: str) -> str:
 
 
 BAD_VALUES = [
-    ("raceway_radius_m", "3.175e-3", "bearing.raceway_radius_m", "must be > ball_radius_m"),
-    ("raceway_radius_m", "3.0e-3", "bearing.raceway_radius_m", "must be > ball_radius_m"),
-    ("ball_radius_m", "0.0", "bearing.ball_radius_m", "must be > 0"),
-    ("ball_radius_m", "-1e-3", "bearing.ball_radius_m", "must be > 0"),
-    ("raceway_radius_m", "-3.5e-3", "bearing.raceway_radius_m", "must be > 0"),
-    ("youngs_modulus_ball_Pa", "0", "bearing.youngs_modulus_ball_Pa", "must be > 0"),
-    ("youngs_modulus_raceway_Pa", "-2e11", "bearing.youngs_modulus_raceway_Pa", "must be > 0"),
+    ("raceway_radius_m", "3.175e-3", "bearing.raceway_radius_m", "wider than the ball"),
+    ("raceway_radius_m", "3.0e-3", "bearing.raceway_radius_m", "wider than the ball"),
+    ("raceway_radius_m", "3.18e-3", "bearing.raceway_radius_m", "wider than the ball"),
+    ("ball_radius_m", "0.0", "bearing.ball_radius_m", "must be in [0.0001, 0.05]"),
+    ("ball_radius_m", "-1e-3", "bearing.ball_radius_m", "must be in"),
+    ("ball_radius_m", "1e-300", "bearing.ball_radius_m", "must be in"),
+    ("ball_radius_m", "1.0", "bearing.ball_radius_m", "must be in"),
+    ("raceway_radius_m", "-3.5e-3", "bearing.raceway_radius_m", "must be in"),
+    ("raceway_radius_m", "1e-300", "bearing.raceway_radius_m", "must be in"),
+    ("youngs_modulus_ball_Pa", "0", "bearing.youngs_modulus_ball_Pa", "must be in"),
+    ("youngs_modulus_ball_Pa", "1e308", "bearing.youngs_modulus_ball_Pa", "must be in"),
+    ("youngs_modulus_raceway_Pa", "-2e11", "bearing.youngs_modulus_raceway_Pa", "must be in"),
     ("poisson_ratio_ball", "0.5", "bearing.poisson_ratio_ball", "must be in [0, 0.5)"),
     ("poisson_ratio_raceway", "-0.1", "bearing.poisson_ratio_raceway", "must be in [0, 0.5)"),
-    ("friction_coefficient", "0.0", "bearing.friction_coefficient", "must be > 0"),
-    ("ball_loads_N", "[50.0, 0.0]", "stand.ball_loads_N", "must be > 0"),
-    ("ball_loads_N", "[-50.0]", "stand.ball_loads_N", "must be > 0"),
+    ("friction_coefficient", "0.0", "bearing.friction_coefficient", "must be in"),
+    ("friction_coefficient", "2.0", "bearing.friction_coefficient", "must be in"),
+    ("ball_loads_N", "[50.0, 0.0]", "stand.ball_loads_N", "must be in"),
+    ("ball_loads_N", "[-50.0]", "stand.ball_loads_N", "must be in"),
+    ("ball_loads_N", "[1e300]", "stand.ball_loads_N", "must be in"),
+    ("ball_loads_N", "[1e12]", "stand.ball_loads_N", "must be in"),
+    ("carriage_velocity_m_s", "1e-300", "stand.carriage_velocity_m_s", "must be in"),
+    ("carriage_velocity_m_s", "1e3", "stand.carriage_velocity_m_s", "must be in"),
     ("ball_loads_N", "[]", "stand.ball_loads_N", "non-empty array"),
     ("ball_radius_m", '"3 mm"', "bearing.ball_radius_m", "must be a number"),
     ("ball_radius_m", "true", "bearing.ball_radius_m", "must be a number"),
@@ -48,7 +58,7 @@ BAD_VALUES = [
     ("stripes_per_area", "0", "model.stripes_per_area", "must be in"),
     ("lambda_max", "0.5", "model.lambda_max", "must be in"),
     ("lambda_max", "1.0", "model.lambda_max", "must be > lambda_min"),
-    ("stop_velocity_m_s", "0.0", "model.stop_velocity_m_s", "must be > 0"),
+    ("stop_velocity_m_s", "0.0", "model.stop_velocity_m_s", "must be in"),
 ]
 
 
@@ -100,9 +110,7 @@ def test_unknown_section_is_refused(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert str(path) in line and "bearings" in line and "unknown section" in line
 
 
-@pytest.mark.parametrize(
-    "text", ["[bearing\nball_radius_m = 1", "ball_radius_m = = 3", "\x00\x01binary"]
-)
+@pytest.mark.parametrize("text", ["[bearing\nball_radius_m = 1", "ball_radius_m = = 3"])
 def test_unreadable_toml_is_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str
 ) -> None:
@@ -131,3 +139,52 @@ def test_default_is_table1() -> None:
     assert cfg.stand.ball_loads_N == (50.0,) * 4
     assert cfg.bearing.slip_exaggeration == 1.2
     assert cfg.stand.rolling_distance_per_travel == 0.5
+
+
+def test_binary_config_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path, line = _run_bad(tmp_path, "\x00\x01binary", capsys)
+    assert str(path) in line and "NUL character" in line
+
+
+def test_non_utf8_config_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "latin1.toml"
+    path.write_bytes(DEFAULT.encode() + "# Lager für Kugeln\n".encode("latin-1"))
+    assert main(["model", str(path)]) == 2
+    line = capsys.readouterr().err.strip()
+    lines = DEFAULT.count("\n") + 1
+    assert str(path) in line and f"line {lines}" in line and "0xfc is not UTF-8" in line
+
+
+def test_deeply_nested_array_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    deep = "[" * 5000 + "]" * 5000
+    path, line = _run_bad(tmp_path, DEFAULT + f"\n[table]\nfamily_loads_N = {deep}\n", capsys)
+    assert str(path) in line and "nested 5000 deep" in line
+
+
+def test_too_many_ball_loads_are_refused_by_count(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    loads = ", ".join(["50.0"] * 200_000)
+    _, line = _run_bad(tmp_path, _edit(DEFAULT, "ball_loads_N", f"[{loads}]"), capsys)
+    assert "stand.ball_loads_N" in line and "200000 entries, more than the 1024" in line
+
+
+def test_oversized_config_is_refused_before_parsing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path, line = _run_bad(tmp_path, DEFAULT + "#" * (5 << 20), capsys)
+    assert str(path) in line and "bytes, more than the 4194304" in line
+
+
+@pytest.mark.parametrize(("load", "modulus"), [("1e5", "210e9"), ("2e4", "1e9"), ("1e3", "1e8")])
+def test_contact_wider_than_the_model_allows_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], load: str, modulus: str
+) -> None:
+    """Loads and moduli each inside their ranges, but together they would press a contact
+    ellipse wider than half the ball: refused at the edge of the Hertz model."""
+    text = _edit(DEFAULT, "ball_loads_N", f"[{load}]")
+    text = _edit(text, "youngs_modulus_ball_Pa", modulus)
+    text = _edit(text, "youngs_modulus_raceway_Pa", modulus)
+    path, line = _run_bad(tmp_path, text, capsys)
+    assert str(path) in line and "stand.ball_loads_N" in line
+    assert "contact ellipse" in line and "outside the Hertz model" in line

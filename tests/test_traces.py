@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gms_comp.errors import GmsCompError, TraceError
-from gms_comp.traces import Trace, TraceUnitWarning, load_trace, parse_mapping, write_trace
+from gms_comp.traces import Trace, load_trace, parse_mapping, write_trace
 
 EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
 needs_emps = pytest.mark.skipif(
@@ -109,12 +109,93 @@ def test_trace_error_is_project_and_builtin_error() -> None:
     assert issubclass(TraceError, ValueError)
 
 
-def test_millimetre_positions_warn(tmp_path: Path) -> None:
+def test_millimetre_positions_are_refused_with_the_mapping_to_use(tmp_path: Path) -> None:
     n = 200
     t = np.arange(n) * 1e-3
     rows = "\n".join(f"{a},{300 * np.sin(10 * a)},{1.0}" for a in t)  # a 300 "m" stroke
     p = _csv(tmp_path, "time_s,position_m,force_N\n" + rows + "\n")
-    with pytest.warns(TraceUnitWarning, match=r"looks like mm; assumed metres"):
+    with pytest.raises(TraceError, match=r"column position_m: spans .* looks like mm") as err:
+        load_trace(p)
+    assert "--map position_m=position_m*0.001" in str(err.value)
+    # The suggested mapping is accepted and scales to a plausible stroke.
+    trace = load_trace(p, parse_mapping(["position_m=position_m*0.001"], "cli") | _ids())
+    assert np.ptp(trace.position_m) == pytest.approx(np.ptp(300e-3 * np.sin(10 * t)))
+
+
+def _ids() -> dict[str, str]:
+    return {"time_s": "time_s", "force_N": "force_N"}
+
+
+def test_micrometre_positions_through_a_mapping_name_the_source(tmp_path: Path) -> None:
+    n = 200
+    t = np.arange(n) * 1e-3
+    rows = "\n".join(f"{a},{2e6 * np.sin(10 * a)},{1.0}" for a in t)  # 2 m in um
+    p = _csv(tmp_path, "time_s,pos_um,force_N\n" + rows + "\n")
+    mapping = {"time_s": "time_s", "position_m": "pos_um", "force_N": "force_N"}
+    with pytest.raises(TraceError, match=r"looks like um .* --map position_m=pos_um\*1e-06"):
+        load_trace(p, mapping)
+
+
+def test_velocity_in_mm_per_s_and_constant_velocity_are_refused(tmp_path: Path) -> None:
+    n = 200
+    t = np.arange(n) * 1e-3
+    x = 1e-3 * np.sin(2 * np.pi * t)
+    for v, message in (
+        (1e3 * 2 * np.pi * np.cos(2 * np.pi * t) * 10, r"looks like mm/s .*velocity_m_s\*0.001"),
+        (np.full(n, 0.25), r"velocity_m_s: is constant \(0.25 m/s\) while the position moves"),
+    ):
+        rows = "\n".join(f"{a},{b},1.0,{c}" for a, b, c in zip(t, x, v, strict=True))
+        p = _csv(tmp_path, "time_s,position_m,force_N,velocity_m_s\n" + rows + "\n")
+        with pytest.raises(TraceError, match=message):
+            load_trace(p)
+
+
+def test_emps_named_matrix_is_refused(tmp_path: Path) -> None:
+    n = 300
+    t = np.arange(n) * 1e-3
+    p = tmp_path / "e2.mat"
+    both = np.column_stack([0.1 * t, 0.2 * t])
+    scipy.io.savemat(p, {"t": t[:, None], "qm": both, "vir": t[:, None], "gtau": np.array([[1.0]])})
+    with pytest.raises(TraceError, match=r"variable qm: is a 300x2 matrix, .* must be a vector"):
+        load_trace(p)
+
+
+def test_mat_variable_is_refused_by_declared_size_before_loading(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import gms_comp.traces as traces
+
+    n = 300
+    t = np.arange(n) * 1e-3
+    p = tmp_path / "e.mat"
+    scipy.io.savemat(
+        p,
+        {"t": t[:, None], "qm": t[:, None], "vir": t[:, None], "gtau": np.array([[1.0]])},
+        do_compression=True,
+    )
+
+    def no_loading(*args: object, **kwargs: object) -> None:
+        raise AssertionError("loadmat must not run on a variable over the cap")
+
+    monkeypatch.setattr(traces, "MAX_TRACE_SAMPLES", 299)
+    monkeypatch.setattr(scipy.io, "loadmat", no_loading)
+    with pytest.raises(TraceError, match=r"declares 300x1 = 300 elements, more than the 299"):
+        load_trace(p)
+
+
+def test_csv_rows_are_capped_while_reading(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import gms_comp.traces as traces
+
+    monkeypatch.setattr(traces, "MAX_TRACE_SAMPLES", 150)
+    p = _csv(tmp_path, "time_s,position_m,force_N\n" + _good_rows(200) + "\n")
+    with pytest.raises(TraceError, match=r"row 152: more than 150 samples"):
+        load_trace(p)
+
+
+def test_non_utf8_csv_is_refused(tmp_path: Path) -> None:
+    p = tmp_path / "l1.csv"
+    p.write_bytes((b"time_s,position_m,force_N,bemerkung\n") + "0,0,0,für\n".encode("latin-1"))
+    with pytest.raises(TraceError, match=r"l1\.csv: not a text file"):
         load_trace(p)
 
 
