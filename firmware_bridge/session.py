@@ -68,6 +68,7 @@ class Rig:
         self._stack = ExitStack()
         self.emulator: DriveEmulator | None = None
         self.nc_sync: SyncProducer | None = None
+        self.realtime = False  # set by run_stream: the drive applies at its next cycle
         try:
             comp_bus = self._stack.enter_context(open_bus(cfg))
             if log_path is not None:
@@ -153,15 +154,18 @@ class Rig:
         if self.emulator is None:
             return dict.fromkeys(keys)
         # a follower's RPDO waits for the next SYNC: one cycle more on the way
-        cycles = self.cfg.max_frame_age_cycles + 2 + int(self.cfg.follows_sync)
-        window_s = cycles * self.cfg.cycle_period_s
+        transport = int(self.realtime) + int(self.cfg.follows_sync)
         status = self.emulator.status()
         return {
             "frames_applied": status["frames_applied"],
             "frames_rejected": status["frames_rejected"],
             "frames_resync": status["frames_resync"],
             "stale_or_corrupt_applied": count_unsent_applied(
-                self.streamer.sent_log, self.emulator.applied_log, window_s
+                self.streamer.sent_log,
+                self.emulator.applied_log,
+                self.cfg.cycle_period_s,
+                self.cfg.max_frame_age_cycles,
+                transport,
             ),
             "max_applied_current_A": status["max_applied_current_A"],
             "drive_state": status["state"],
@@ -187,6 +191,7 @@ def run_stream(
     with Rig(cfg, faults, seed, log_path, builtin_drive) as rig:
         # the drive and the audit log run on the bus timestamps' clock
         rig.streamer.send_clock = time.time
+        rig.realtime = True
         stop = threading.Event()
         devices = [
             threading.Thread(target=device.run, args=(stop, time.time), daemon=True)
@@ -273,7 +278,9 @@ def _follower_loop(
 ) -> dict[str, Any]:
     """SYNC follower: one RPDO in answer to each SYNC of the NC, applied at the next.
 
-    Cycle ``k`` is the ``k``-th SYNC since the first one; a loop that missed
+    Cycle ``k`` is the SYNC in the ``k``-th period since the first one (the
+    frame's alive counter, dated by the drive on its own cycles, so an NC that
+    skips a SYNC does not put the counter behind time); a loop that missed
     SYNCs answers only the latest (counted late), so no two RPDOs share a window.
     Lateness is the reaction time to the SYNC, on the bus timestamps' clock.
     """
@@ -282,6 +289,7 @@ def _follower_loop(
     stats = _LoopStats(period)
     seen = tx.syncs_seen
     cycle = -1
+    first_sync_s = 0.0
     wait_s = FIRST_SYNC_WAIT_S
     sync_lost = False
     while cycle + 1 < n_cycles or rig.streamer.shaper.value_raw != 0:
@@ -289,10 +297,13 @@ def _follower_loop(
             sync_lost = True  # the NC stopped: stay silent, the drive falls back
             break
         wait_s = SYNC_GONE_S
-        missed = 0 if cycle < 0 else tx.syncs_seen - seen - 1
+        if cycle < 0:
+            first_sync_s, slot = tx.last_sync_s, 0
+        else:
+            slot = max(cycle + 1, round((tx.last_sync_s - first_sync_s) / period))
         seen = tx.syncs_seen
-        stats.skipped += missed
-        cycle += 1 + missed
+        stats.skipped += slot - cycle - 1 if cycle >= 0 else 0
+        cycle = slot
         lateness = time.time() - tx.last_sync_s
         start = clock()
         current = source(cycle * period) if cycle < n_cycles else None

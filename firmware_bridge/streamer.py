@@ -18,6 +18,7 @@ import can
 from .busload import bus_load
 from .cia402 import Cia402Codec, load_drive_od
 from .e2e import DriveStatus, E2eCodec
+from .freshness import AGE_TOLERANCE_CYCLES, is_fresh
 from .settings import CanConfig
 from .supervisor import saturate, toward_zero
 
@@ -90,11 +91,11 @@ class Cia402Tx:
         extra = [self.codec.sync_frame()] if self.cfg.sync_master else []
         if cycle % self.heartbeat_cycles == 0:
             extra.append(self.codec.heartbeat_frame())
-        return self.codec.rpdo_frame(raw), extra
+        return self.codec.rpdo_frame(raw, cycle), extra
 
     def traffic(self) -> list[tuple[int, float]]:
         rate = 1.0 / self.cfg.cycle_period_s  # SYNC is on the bus whoever produces it
-        return [(2, rate), (0, rate), (1, 1.0 / self.cfg.heartbeat_period_s)]
+        return [(3, rate), (0, rate), (1, 1.0 / self.cfg.heartbeat_period_s)]
 
     def on_reply(self, msg: can.Message) -> None:
         cob_id = msg.arbitration_id
@@ -186,13 +187,35 @@ class Streamer:
 def count_unsent_applied(
     sent: Sequence[tuple[float, float, bytes]],
     applied: Sequence[tuple[float, bytes]],
-    window_s: float,
+    period_s: float,
+    max_age_cycles: int,
+    transport_cycles: int = 0,
 ) -> int:
-    """Applied frames that are not a payload the streamer sent within ``window_s`` before.
+    """Applied frames that are not a payload the streamer sent within the validity window.
 
-    ``sent`` holds ``(not_before_s, not_after_s, payload)``: the send call's
-    bounds. An independent check of the receiver: whatever it accepted must be
-    exactly what was sent, and recent. Corrupted, stale or replayed frames fail it.
+    An independent check of the receiver: whatever it applied must be exactly
+    what was sent (corrupted payloads fail) and fresh by the one rule of
+    :func:`~firmware_bridge.freshness.is_fresh` (stale or replayed frames fail).
+
+    Parameters
+    ----------
+    sent
+        ``(not_before_s, not_after_s, payload)`` per feedforward frame: the send call's bounds.
+    applied
+        ``(time_s, payload)`` per frame the drive applied, at the drive cycle it did.
+    period_s
+        The control cycle.
+    max_age_cycles
+        The validity window in cycles (``[can] max_frame_age_cycles``).
+    transport_cycles
+        Cycles a fresh frame takes from the send to its application: 0 stepped,
+        1 in real time (the drive applies at its next cycle), plus one when the
+        RPDO waits for the next SYNC.
+
+    Returns
+    -------
+    int
+        The number of applied frames that fail the check.
     """
     sends: dict[bytes, tuple[list[float], list[float]]] = {}
     for before, after, data in sent:
@@ -202,7 +225,10 @@ def count_unsent_applied(
     bad = 0
     for t, data in applied:
         starts, ends = sends.get(data, ([], []))
-        i = bisect.bisect_right(starts, t + 1e-9)  # the latest send begun by then
-        if i == 0 or t - ends[i - 1] > window_s:
+        i = bisect.bisect_right(starts, t + AGE_TOLERANCE_CYCLES * period_s)  # begun by then
+        if i == 0:
             bad += 1
+            continue
+        age_cycles = (t - ends[i - 1]) / period_s - transport_cycles
+        bad += not is_fresh(age_cycles, max_age_cycles)
     return bad
