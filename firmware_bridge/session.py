@@ -31,9 +31,17 @@ from .cia402 import SyncProducer
 from .emulator import DriveEmulator
 from .faults import Fault, FaultyBus
 from .settings import CanConfig
-from .streamer import Cia402Tx, Streamer, count_unsent_applied, make_tx, profile_bus_load
+from .streamer import (
+    Cia402Tx,
+    Streamer,
+    check_channel_free,
+    count_unsent_applied,
+    make_tx,
+    profile_bus_load,
+)
 
 FeedforwardSource = Callable[[float], float]  # time in s -> feedforward current in A
+CHANNEL_CHECK_S = 0.02  # listen this long (at least 10 cycles) for another compensator
 FIRST_SYNC_WAIT_S = 2.0  # a follower waits this long for the NC's first SYNC
 SYNC_GONE_S = 0.5  # ... and ends the stream when SYNC stops for this long
 
@@ -71,6 +79,8 @@ class Rig:
         self.realtime = False  # set by run_stream: the drive applies at its next cycle
         try:
             comp_bus = self._stack.enter_context(open_bus(cfg))
+            listen_s = max(CHANNEL_CHECK_S, 10 * cfg.cycle_period_s)
+            check_channel_free(comp_bus, cfg, self.tx, listen_s)
             if log_path is not None:
                 monitor = self._stack.enter_context(open_bus(cfg))
                 notifier = can.Notifier(monitor, [can.Logger(str(log_path))])
@@ -129,6 +139,7 @@ class Rig:
             "frames_sent": self.streamer.frames_sent,
             "send_errors": self.streamer.send_errors,
             "non_finite_feedforward": self.streamer.source_faults,
+            "foreign_frames": self.streamer.foreign_frames,
             "faults_injected": dict(self.faulty.injected),
             "bus_load": self.bus_load,
         }
@@ -186,31 +197,60 @@ def run_stream(
     """Stream ``source`` for ``duration_s`` in real time, then ramp down.
 
     The drive is the built-in emulator (in a thread), or with ``builtin_drive``
-    false whatever drive is on the bus.
+    false whatever drive is on the bus. See :func:`stream_on` for the report.
     """
     with Rig(cfg, faults, seed, log_path, builtin_drive) as rig:
-        # the drive and the audit log run on the bus timestamps' clock
-        rig.streamer.send_clock = time.time
-        rig.realtime = True
-        stop = threading.Event()
-        devices = [
-            threading.Thread(target=device.run, args=(stop, time.time), daemon=True)
-            for device in (rig.emulator, rig.nc_sync)
-            if device is not None
-        ]
+        return stream_on(rig, source, duration_s, clock)
+
+
+def stream_on(
+    rig: Rig,
+    source: FeedforwardSource,
+    duration_s: float,
+    clock: Callable[[], float] = time.perf_counter,
+) -> dict[str, Any]:
+    """Stream ``source`` over an open ``rig`` for ``duration_s`` in real time, then ramp down.
+
+    Parameters
+    ----------
+    rig
+        The open rig (its channel was checked free when it opened).
+    source
+        Feedforward current in A as a function of the time in s.
+    duration_s
+        Streaming time before the ramp to zero.
+    clock
+        Monotonic clock of the control loop.
+
+    Returns
+    -------
+    dict
+        :meth:`Rig.report` plus the loop's timing statistics.
+    """
+    cfg = rig.cfg
+    rig.streamer.drain_replies()  # frames queued since the rig opened are history
+    # the drive and the audit log run on the bus timestamps' clock
+    rig.streamer.send_clock = time.time
+    rig.realtime = True
+    stop = threading.Event()
+    devices = [
+        threading.Thread(target=device.run, args=(stop, time.time), daemon=True)
+        for device in (rig.emulator, rig.nc_sync)
+        if device is not None
+    ]
+    for device in devices:
+        device.start()
+    try:
+        if isinstance(rig.tx, Cia402Tx) and cfg.follows_sync:
+            timing = _follower_loop(rig, rig.tx, source, duration_s, clock)
+        else:
+            timing = _control_loop(rig, source, duration_s, clock)
+    finally:
+        time.sleep(cfg.fallback_time_s)  # let the drive see the end of the stream
+        stop.set()
         for device in devices:
-            device.start()
-        try:
-            if isinstance(rig.tx, Cia402Tx) and cfg.follows_sync:
-                timing = _follower_loop(rig, rig.tx, source, duration_s, clock)
-            else:
-                timing = _control_loop(rig, source, duration_s, clock)
-        finally:
-            time.sleep(cfg.fallback_time_s)  # let the drive see the end of the stream
-            stop.set()
-            for device in devices:
-                device.join()
-        return {**rig.report(), **timing}
+            device.join()
+    return {**rig.report(), **timing}
 
 
 class _LoopStats:

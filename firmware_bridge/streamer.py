@@ -9,11 +9,14 @@ from __future__ import annotations
 
 import bisect
 import math
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import can
+
+from gms_comp.errors import BusError
 
 from .busload import bus_load
 from .cia402 import Cia402Codec, load_drive_od
@@ -29,6 +32,7 @@ class CompensatorTx(Protocol):
     """What the streamer needs from a profile."""
 
     target_ids: frozenset[int]  # ids of the feedforward frames (what faults act on)
+    exclusive_ids: frozenset[int]  # ids no other node may send while this one streams
     self_checked: bool  # feedforward frames carry their own CRC
     limit_raw: int
 
@@ -46,6 +50,7 @@ class E2eTx:
         self.cfg = cfg
         self.codec = E2eCodec()
         self.target_ids = frozenset({self.codec.command.frame_id})
+        self.exclusive_ids = self.target_ids
         self.self_checked = True
         self.limit_raw = min(self.codec.limit_raw, self.codec.to_raw(cfg.max_current_A))
         self.to_raw = self.codec.to_raw
@@ -78,6 +83,11 @@ class Cia402Tx:
         self.cfg = cfg
         self.codec = Cia402Codec(cfg, load_drive_od(cfg.drive_node_id))
         self.target_ids = frozenset({self.codec.rpdo_cob_id})
+        # our heartbeat's node id, and SYNC when we produce it, are ours alone too
+        own = {self.codec.rpdo_cob_id, self.codec.heartbeat_cob_id}
+        self.exclusive_ids = frozenset(
+            own | ({self.codec.sync_cob_id} if cfg.sync_master else set())
+        )
         self.self_checked = False
         self.limit_raw = min(self.codec.limit_raw, self.codec.to_raw(cfg.max_current_A))
         self.to_raw = self.codec.to_raw
@@ -151,6 +161,7 @@ class Streamer:
     frames_sent: int = 0
     send_errors: int = 0
     source_faults: int = 0
+    foreign_frames: int = 0  # frames with our exclusive ids sent by another node
     sent_log: list[tuple[float, float, bytes]] = field(default_factory=list)
     send_clock: Callable[[], float] | None = None  # stamps the log at the send, if given
 
@@ -180,8 +191,38 @@ class Streamer:
         return raw
 
     def drain_replies(self) -> None:
+        """Hand every frame waiting on the bus to the profile; count another node's."""
         while (msg := self.bus.recv(timeout=0.0)) is not None:
+            if msg.arbitration_id in self.tx.exclusive_ids:
+                self.foreign_frames += 1
             self.tx.on_reply(msg)
+
+
+def check_channel_free(bus: Sender, cfg: CanConfig, tx: CompensatorTx, listen_s: float) -> None:
+    """Refuse to stream if another node already sends our frames on the channel.
+
+    One compensator per drive: listens ``listen_s`` for frames with the ids
+    only this compensator may send (the feedforward frame; cia402 also its
+    heartbeat and, as SYNC master, SYNC) and raises :class:`BusError` on the first.
+
+    Parameters
+    ----------
+    bus
+        The compensator's bus, before it sends anything.
+    cfg, tx
+        The ``[can]`` section and the profile's sending side.
+    listen_s
+        How long to listen; several cycles of the other node's stream.
+    """
+    deadline = time.monotonic() + listen_s
+    while (remaining := deadline - time.monotonic()) > 0:
+        msg = bus.recv(timeout=remaining)
+        if msg is not None and msg.arbitration_id in tx.exclusive_ids:
+            raise BusError(
+                f"another node already sends frame 0x{msg.arbitration_id:03X} on "
+                f"{cfg.interface} channel {cfg.channel!r} (profile {cfg.profile}, drive node "
+                f"{cfg.drive_node_id}): one compensator per drive, stop the other one first"
+            )
 
 
 def count_unsent_applied(
