@@ -6,9 +6,12 @@ per mille of the rated torque 0x6076 (rated force for a linear motor); since the
 force is the force constant times the current, that is per mille of the rated
 current 0x6075, which is how the compensator scales its current.
 
-RPDO1 has transmission type 1: the drive takes the RPDO received since the last
-SYNC and applies it at the next SYNC. A window holding more than one distinct
-RPDO means a frame from another cycle crept in; the drive then applies none.
+RPDO1 maps 0x60B2 and, in its third byte, the alive counter 0x2001 (the
+compensator's cycle index modulo 256), by which the drive dates each frame (see
+:mod:`firmware_bridge.freshness`): a counter-less PDO cannot tell a frame held
+up somewhere from a fresh one. RPDO1 has transmission type 1: the drive takes
+the RPDOs received since the last SYNC and, at that SYNC, applies the newest
+one that is fresh, rejecting older, repeated and stale ones.
 """
 
 from __future__ import annotations
@@ -27,15 +30,17 @@ from canopen.objectdictionary import ObjectDictionary
 
 from gms_comp.errors import BusError
 
+from .freshness import COUNTER_MODULUS, FrameClock
 from .resources import packaged_path
 from .settings import CanConfig, cycles_within
 from .supervisor import RejectCounts, Supervisor, Verdict
 
 TORQUE_OFFSET = 0x60B2
+ALIVE_COUNTER = 0x2001  # manufacturer object mapped beside 0x60B2
 PRODUCER_HEARTBEAT = 0x1017
 RPDO1_COMM, RPDO1_MAP = 0x1400, 0x1600
 ABORT_CONNECTION_OPTION = 0x6007
-_INT16 = struct.Struct("<h")
+_RPDO = struct.Struct("<hB")  # 0x60B2 INTEGER16, 0x2001 UNSIGNED8
 _HEARTBEAT_OPERATIONAL = 0x05
 PER_MILLE = 1000
 
@@ -81,9 +86,16 @@ class Cia402Codec:
     """Frames of the compensator side, laid out as the drive's EDS says."""
 
     def __init__(self, cfg: CanConfig, od: ObjectDictionary) -> None:
-        mapping = od_default(od, RPDO1_MAP, 1)
-        if mapping != (TORQUE_OFFSET << 16) | 0x10:
-            raise BusError(f"RPDO1 must map 0x60B2 (16 bit), the EDS maps 0x{mapping:08X}")
+        mapping = [
+            od_default(od, RPDO1_MAP, sub) for sub in range(1, od_default(od, RPDO1_MAP, 0) + 1)
+        ]
+        wanted = [(TORQUE_OFFSET << 16) | 0x10, (ALIVE_COUNTER << 16) | 0x08]
+        if mapping != wanted:
+            found = ", ".join(f"0x{m:08X}" for m in mapping)
+            raise BusError(
+                "RPDO1 must map 0x60B2 (16 bit) then the alive counter 0x2001 (8 bit), "
+                f"the EDS maps {found}"
+            )
         if od_default(od, RPDO1_COMM, 2) != 1:
             raise BusError("RPDO1 must have transmission type 1 (synchronous, every SYNC)")
         self.rpdo_cob_id = od_default(od, RPDO1_COMM, 1) & 0x7FF
@@ -98,10 +110,21 @@ class Cia402Codec:
     def from_raw(self, raw: int) -> float:
         return raw * self.rated_current_A / PER_MILLE
 
-    def rpdo_frame(self, raw: int) -> can.Message:
+    def rpdo_frame(self, raw: int, counter: int) -> can.Message:
+        """RPDO1 with torque offset ``raw`` (per mille) and the cycle's alive counter."""
         return can.Message(
-            arbitration_id=self.rpdo_cob_id, data=_INT16.pack(raw), is_extended_id=False
+            arbitration_id=self.rpdo_cob_id,
+            data=_RPDO.pack(raw, counter % COUNTER_MODULUS),
+            is_extended_id=False,
         )
+
+    @staticmethod
+    def unpack_rpdo(data: bytes) -> tuple[int, int] | None:
+        """``(torque offset, counter)`` of an RPDO1 payload, None if its length is wrong."""
+        if len(data) != _RPDO.size:
+            return None
+        raw, counter = _RPDO.unpack(data)
+        return int(raw), int(counter)
 
     def sync_frame(self) -> can.Message:
         return can.Message(arbitration_id=self.sync_cob_id, data=b"", is_extended_id=False)
@@ -182,6 +205,7 @@ class Cia402Receiver:
         consumer = read_object(node, 0x1016, 1)
         self.heartbeat_producer = 0x700 + ((consumer >> 16) & 0x7F)
         self.heartbeat_timeout_s = (consumer & 0xFFFF) * 1e-3
+        self.clock = FrameClock(cfg.max_frame_age_cycles)
         self.window: list[bytes] = []
         self.fresh: tuple[int, bytes] | None = None
         self.applied_data: bytes | None = None
@@ -197,7 +221,7 @@ class Cia402Receiver:
         if msg.is_error_frame:
             self.counts.add(Verdict.CORRUPT)  # the controller's CRC caught a damaged frame
         elif cob_id == self.codec.rpdo_cob_id:
-            if len(msg.data) == _INT16.size:
+            if self.codec.unpack_rpdo(bytes(msg.data)) is not None:
                 self.window.append(bytes(msg.data))
             else:
                 self.counts.add(Verdict.CORRUPT)
@@ -210,17 +234,21 @@ class Cia402Receiver:
             self.node.network.notify(cob_id, msg.data, msg.timestamp)
 
     def _close_window(self) -> None:
+        """At SYNC: judge the window's RPDOs in arrival order; the newest fresh one wins.
+
+        Frames are dated in drive cycles, which run on time whether SYNC comes
+        or not; the compensator numbers its frames by the same time slots (as
+        SYNC follower: the slot of the SYNC it answers).
+        """
         window, self.window = self.window, []
-        if not window:
-            return
-        if all(data == window[0] for data in window):
-            self.counts.add(Verdict.ACCEPTED)
-            for _ in window[1:]:
-                self.counts.add(Verdict.DUPLICATE)
-            self.fresh = (_INT16.unpack(window[0])[0], window[0])
-        else:
-            for _ in window:
-                self.counts.add(Verdict.OUT_OF_ORDER)
+        for data in window:
+            unpacked = self.codec.unpack_rpdo(data)
+            assert unpacked is not None  # checked on arrival
+            raw, counter = unpacked
+            verdict = self.clock.judge(counter)
+            self.counts.add(verdict)
+            if verdict is Verdict.ACCEPTED:
+                self.fresh = (raw, data)
 
     def tick(self, now_s: float) -> int:
         """One drive cycle at time ``now_s``; returns the applied 0x60B2 value."""
@@ -231,7 +259,9 @@ class Cia402Receiver:
         was_lost = self.supervisor.link_lost
         out = self.supervisor.tick(fresh[0] if fresh else None)
         self.applied_data = fresh[1] if fresh else None
+        self.clock.tick()
         if self.supervisor.link_lost and not was_lost:
+            self.clock.link_lost()
             self._raise_fault(EMCY_RPDO_TIMEOUT)
         elif fresh:
             self.active_faults.discard(EMCY_RPDO_TIMEOUT)

@@ -19,10 +19,10 @@ from cantools.database.can import Message
 
 from gms_comp.errors import BusError
 
+from .freshness import COUNTER_MODULUS, FrameClock
 from .resources import packaged_path
 from .supervisor import RejectCounts, Supervisor, Verdict
 
-COUNTER_MODULUS = 256
 CRC_BYTES = 2
 
 
@@ -171,10 +171,11 @@ def _decode_raw(message: Message, data: bytes) -> dict[str, int]:
 class E2eReceiver:
     """The drive's side of the e2e profile: check, classify, apply, supervise.
 
-    A frame is applied only if its CRC holds, its counter is newer than the last
-    accepted one, and it is at most ``max_age_cycles`` older than the drive's
-    cycle count says it should be. After the link was lost, the first intact
-    frame only re-establishes the counter reference.
+    A frame is applied only if its CRC holds, its value is in the DBC's range,
+    its counter is newer than the last accepted one and its age is within
+    ``max_age_cycles`` (see :mod:`firmware_bridge.freshness`, the one
+    definition of a stale frame). The first intact frame ever only sets the
+    counter reference.
     """
 
     RESYNC, ACTIVE, HOLD, FALLBACK = range(4)  # the DBC's DriveStatus.State values
@@ -182,15 +183,13 @@ class E2eReceiver:
     def __init__(self, codec: E2eCodec, supervisor: Supervisor, max_age_cycles: int) -> None:
         self.codec = codec
         self.supervisor = supervisor
-        self.max_age_cycles = max_age_cycles
+        self.clock = FrameClock(max_age_cycles)
         self.counts = RejectCounts()
-        self.synced = False
-        self.last_counter = 0
-        self.cycles_since_reference = 0
         self.fresh_raw: int | None = None
         self.fresh_data: bytes | None = None
 
     def on_frame(self, data: bytes) -> Verdict:
+        """Check one received FfCommand payload; returns (and counts) the verdict."""
         verdict = self._classify(data)
         self.counts.add(verdict)
         return verdict
@@ -200,38 +199,25 @@ class E2eReceiver:
         if checked is None:
             return Verdict.CORRUPT
         counter, raw = checked
-        if not self.synced:
-            self.synced = True
-            self._take_reference(counter)
-            return Verdict.RESYNC
-        delta = (counter - self.last_counter) % COUNTER_MODULUS
-        if delta == 0:
-            return Verdict.DUPLICATE
-        if delta >= COUNTER_MODULUS // 2:
-            return Verdict.OUT_OF_ORDER
-        if self.cycles_since_reference - delta > self.max_age_cycles:
-            return Verdict.STALE
-        self._take_reference(counter)
-        self.fresh_raw = raw
-        self.fresh_data = bytes(data)
-        return Verdict.ACCEPTED
-
-    def _take_reference(self, counter: int) -> None:
-        self.last_counter = counter
-        self.cycles_since_reference = 0
+        verdict = self.clock.judge(counter)
+        if verdict is Verdict.ACCEPTED:
+            self.fresh_raw = raw
+            self.fresh_data = bytes(data)
+        return verdict
 
     def tick(self) -> int:
         """One drive cycle: apply the fresh value, if any; return the applied raw value."""
         was_lost = self.supervisor.link_lost
         out = self.supervisor.tick(self.fresh_raw)
         self.fresh_raw = None
-        self.cycles_since_reference += 1
+        self.clock.tick()
         if self.supervisor.link_lost and not was_lost:
-            self.synced = False  # the counter reference is void after an outage
+            self.clock.link_lost()
         return out
 
     @property
     def state(self) -> int:
+        """The DBC's DriveStatus.State value of the receiver now."""
         if self.supervisor.link_lost:
             return self.FALLBACK if self.supervisor.output_raw else self.RESYNC
         return self.ACTIVE if self.supervisor.cycles_since_fresh == 0 else self.HOLD

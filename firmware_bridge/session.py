@@ -31,9 +31,17 @@ from .cia402 import SyncProducer
 from .emulator import DriveEmulator
 from .faults import Fault, FaultyBus
 from .settings import CanConfig
-from .streamer import Cia402Tx, Streamer, count_unsent_applied, make_tx, profile_bus_load
+from .streamer import (
+    Cia402Tx,
+    Streamer,
+    check_channel_free,
+    count_unsent_applied,
+    make_tx,
+    profile_bus_load,
+)
 
 FeedforwardSource = Callable[[float], float]  # time in s -> feedforward current in A
+CHANNEL_CHECK_S = 0.02  # listen this long (at least 10 cycles) for another compensator
 FIRST_SYNC_WAIT_S = 2.0  # a follower waits this long for the NC's first SYNC
 SYNC_GONE_S = 0.5  # ... and ends the stream when SYNC stops for this long
 
@@ -68,8 +76,11 @@ class Rig:
         self._stack = ExitStack()
         self.emulator: DriveEmulator | None = None
         self.nc_sync: SyncProducer | None = None
+        self.realtime = False  # set by run_stream: the drive applies at its next cycle
         try:
             comp_bus = self._stack.enter_context(open_bus(cfg))
+            listen_s = max(CHANNEL_CHECK_S, 10 * cfg.cycle_period_s)
+            check_channel_free(comp_bus, cfg, self.tx, listen_s)
             if log_path is not None:
                 monitor = self._stack.enter_context(open_bus(cfg))
                 notifier = can.Notifier(monitor, [can.Logger(str(log_path))])
@@ -128,6 +139,7 @@ class Rig:
             "frames_sent": self.streamer.frames_sent,
             "send_errors": self.streamer.send_errors,
             "non_finite_feedforward": self.streamer.source_faults,
+            "foreign_frames": self.streamer.foreign_frames,
             "faults_injected": dict(self.faulty.injected),
             "bus_load": self.bus_load,
         }
@@ -153,15 +165,18 @@ class Rig:
         if self.emulator is None:
             return dict.fromkeys(keys)
         # a follower's RPDO waits for the next SYNC: one cycle more on the way
-        cycles = self.cfg.max_frame_age_cycles + 2 + int(self.cfg.follows_sync)
-        window_s = cycles * self.cfg.cycle_period_s
+        transport = int(self.realtime) + int(self.cfg.follows_sync)
         status = self.emulator.status()
         return {
             "frames_applied": status["frames_applied"],
             "frames_rejected": status["frames_rejected"],
             "frames_resync": status["frames_resync"],
             "stale_or_corrupt_applied": count_unsent_applied(
-                self.streamer.sent_log, self.emulator.applied_log, window_s
+                self.streamer.sent_log,
+                self.emulator.applied_log,
+                self.cfg.cycle_period_s,
+                self.cfg.max_frame_age_cycles,
+                transport,
             ),
             "max_applied_current_A": status["max_applied_current_A"],
             "drive_state": status["state"],
@@ -182,30 +197,60 @@ def run_stream(
     """Stream ``source`` for ``duration_s`` in real time, then ramp down.
 
     The drive is the built-in emulator (in a thread), or with ``builtin_drive``
-    false whatever drive is on the bus.
+    false whatever drive is on the bus. See :func:`stream_on` for the report.
     """
     with Rig(cfg, faults, seed, log_path, builtin_drive) as rig:
-        # the drive and the audit log run on the bus timestamps' clock
-        rig.streamer.send_clock = time.time
-        stop = threading.Event()
-        devices = [
-            threading.Thread(target=device.run, args=(stop, time.time), daemon=True)
-            for device in (rig.emulator, rig.nc_sync)
-            if device is not None
-        ]
+        return stream_on(rig, source, duration_s, clock)
+
+
+def stream_on(
+    rig: Rig,
+    source: FeedforwardSource,
+    duration_s: float,
+    clock: Callable[[], float] = time.perf_counter,
+) -> dict[str, Any]:
+    """Stream ``source`` over an open ``rig`` for ``duration_s`` in real time, then ramp down.
+
+    Parameters
+    ----------
+    rig
+        The open rig (its channel was checked free when it opened).
+    source
+        Feedforward current in A as a function of the time in s.
+    duration_s
+        Streaming time before the ramp to zero.
+    clock
+        Monotonic clock of the control loop.
+
+    Returns
+    -------
+    dict
+        :meth:`Rig.report` plus the loop's timing statistics.
+    """
+    cfg = rig.cfg
+    rig.streamer.drain_replies()  # frames queued since the rig opened are history
+    # the drive and the audit log run on the bus timestamps' clock
+    rig.streamer.send_clock = time.time
+    rig.realtime = True
+    stop = threading.Event()
+    devices = [
+        threading.Thread(target=device.run, args=(stop, time.time), daemon=True)
+        for device in (rig.emulator, rig.nc_sync)
+        if device is not None
+    ]
+    for device in devices:
+        device.start()
+    try:
+        if isinstance(rig.tx, Cia402Tx) and cfg.follows_sync:
+            timing = _follower_loop(rig, rig.tx, source, duration_s, clock)
+        else:
+            timing = _control_loop(rig, source, duration_s, clock)
+    finally:
+        time.sleep(cfg.fallback_time_s)  # let the drive see the end of the stream
+        stop.set()
         for device in devices:
-            device.start()
-        try:
-            if isinstance(rig.tx, Cia402Tx) and cfg.follows_sync:
-                timing = _follower_loop(rig, rig.tx, source, duration_s, clock)
-            else:
-                timing = _control_loop(rig, source, duration_s, clock)
-        finally:
-            time.sleep(cfg.fallback_time_s)  # let the drive see the end of the stream
-            stop.set()
-            for device in devices:
-                device.join()
-        return {**rig.report(), **timing}
+            device.join()
+    return {**rig.report(), **timing}
 
 
 class _LoopStats:
@@ -273,7 +318,9 @@ def _follower_loop(
 ) -> dict[str, Any]:
     """SYNC follower: one RPDO in answer to each SYNC of the NC, applied at the next.
 
-    Cycle ``k`` is the ``k``-th SYNC since the first one; a loop that missed
+    Cycle ``k`` is the SYNC in the ``k``-th period since the first one (the
+    frame's alive counter, dated by the drive on its own cycles, so an NC that
+    skips a SYNC does not put the counter behind time); a loop that missed
     SYNCs answers only the latest (counted late), so no two RPDOs share a window.
     Lateness is the reaction time to the SYNC, on the bus timestamps' clock.
     """
@@ -282,6 +329,7 @@ def _follower_loop(
     stats = _LoopStats(period)
     seen = tx.syncs_seen
     cycle = -1
+    first_sync_s = 0.0
     wait_s = FIRST_SYNC_WAIT_S
     sync_lost = False
     while cycle + 1 < n_cycles or rig.streamer.shaper.value_raw != 0:
@@ -289,10 +337,13 @@ def _follower_loop(
             sync_lost = True  # the NC stopped: stay silent, the drive falls back
             break
         wait_s = SYNC_GONE_S
-        missed = 0 if cycle < 0 else tx.syncs_seen - seen - 1
+        if cycle < 0:
+            first_sync_s, slot = tx.last_sync_s, 0
+        else:
+            slot = max(cycle + 1, round((tx.last_sync_s - first_sync_s) / period))
         seen = tx.syncs_seen
-        stats.skipped += missed
-        cycle += 1 + missed
+        stats.skipped += slot - cycle - 1 if cycle >= 0 else 0
+        cycle = slot
         lateness = time.time() - tx.last_sync_s
         start = clock()
         current = source(cycle * period) if cycle < n_cycles else None

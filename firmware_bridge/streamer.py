@@ -9,15 +9,19 @@ from __future__ import annotations
 
 import bisect
 import math
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import can
 
+from gms_comp.errors import BusError
+
 from .busload import bus_load
 from .cia402 import Cia402Codec, load_drive_od
 from .e2e import DriveStatus, E2eCodec
+from .freshness import AGE_TOLERANCE_CYCLES, is_fresh
 from .settings import CanConfig
 from .supervisor import saturate, toward_zero
 
@@ -28,6 +32,7 @@ class CompensatorTx(Protocol):
     """What the streamer needs from a profile."""
 
     target_ids: frozenset[int]  # ids of the feedforward frames (what faults act on)
+    exclusive_ids: frozenset[int]  # ids no other node may send while this one streams
     self_checked: bool  # feedforward frames carry their own CRC
     limit_raw: int
 
@@ -45,6 +50,7 @@ class E2eTx:
         self.cfg = cfg
         self.codec = E2eCodec()
         self.target_ids = frozenset({self.codec.command.frame_id})
+        self.exclusive_ids = self.target_ids
         self.self_checked = True
         self.limit_raw = min(self.codec.limit_raw, self.codec.to_raw(cfg.max_current_A))
         self.to_raw = self.codec.to_raw
@@ -77,6 +83,11 @@ class Cia402Tx:
         self.cfg = cfg
         self.codec = Cia402Codec(cfg, load_drive_od(cfg.drive_node_id))
         self.target_ids = frozenset({self.codec.rpdo_cob_id})
+        # our heartbeat's node id, and SYNC when we produce it, are ours alone too
+        own = {self.codec.rpdo_cob_id, self.codec.heartbeat_cob_id}
+        self.exclusive_ids = frozenset(
+            own | ({self.codec.sync_cob_id} if cfg.sync_master else set())
+        )
         self.self_checked = False
         self.limit_raw = min(self.codec.limit_raw, self.codec.to_raw(cfg.max_current_A))
         self.to_raw = self.codec.to_raw
@@ -90,11 +101,11 @@ class Cia402Tx:
         extra = [self.codec.sync_frame()] if self.cfg.sync_master else []
         if cycle % self.heartbeat_cycles == 0:
             extra.append(self.codec.heartbeat_frame())
-        return self.codec.rpdo_frame(raw), extra
+        return self.codec.rpdo_frame(raw, cycle), extra
 
     def traffic(self) -> list[tuple[int, float]]:
         rate = 1.0 / self.cfg.cycle_period_s  # SYNC is on the bus whoever produces it
-        return [(2, rate), (0, rate), (1, 1.0 / self.cfg.heartbeat_period_s)]
+        return [(3, rate), (0, rate), (1, 1.0 / self.cfg.heartbeat_period_s)]
 
     def on_reply(self, msg: can.Message) -> None:
         cob_id = msg.arbitration_id
@@ -150,6 +161,7 @@ class Streamer:
     frames_sent: int = 0
     send_errors: int = 0
     source_faults: int = 0
+    foreign_frames: int = 0  # frames with our exclusive ids sent by another node
     sent_log: list[tuple[float, float, bytes]] = field(default_factory=list)
     send_clock: Callable[[], float] | None = None  # stamps the log at the send, if given
 
@@ -179,20 +191,72 @@ class Streamer:
         return raw
 
     def drain_replies(self) -> None:
+        """Hand every frame waiting on the bus to the profile; count another node's."""
         while (msg := self.bus.recv(timeout=0.0)) is not None:
+            if msg.arbitration_id in self.tx.exclusive_ids:
+                self.foreign_frames += 1
             self.tx.on_reply(msg)
+
+
+def check_channel_free(bus: Sender, cfg: CanConfig, tx: CompensatorTx, listen_s: float) -> None:
+    """Refuse to stream if another node already sends our frames on the channel.
+
+    One compensator per drive: listens ``listen_s`` for frames with the ids
+    only this compensator may send (the feedforward frame; cia402 also its
+    heartbeat and, as SYNC master, SYNC) and raises :class:`BusError` on the first.
+
+    Parameters
+    ----------
+    bus
+        The compensator's bus, before it sends anything.
+    cfg, tx
+        The ``[can]`` section and the profile's sending side.
+    listen_s
+        How long to listen; several cycles of the other node's stream.
+    """
+    deadline = time.monotonic() + listen_s
+    while (remaining := deadline - time.monotonic()) > 0:
+        msg = bus.recv(timeout=remaining)
+        if msg is not None and msg.arbitration_id in tx.exclusive_ids:
+            raise BusError(
+                f"another node already sends frame 0x{msg.arbitration_id:03X} on "
+                f"{cfg.interface} channel {cfg.channel!r} (profile {cfg.profile}, drive node "
+                f"{cfg.drive_node_id}): one compensator per drive, stop the other one first"
+            )
 
 
 def count_unsent_applied(
     sent: Sequence[tuple[float, float, bytes]],
     applied: Sequence[tuple[float, bytes]],
-    window_s: float,
+    period_s: float,
+    max_age_cycles: int,
+    transport_cycles: int = 0,
 ) -> int:
-    """Applied frames that are not a payload the streamer sent within ``window_s`` before.
+    """Applied frames that are not a payload the streamer sent within the validity window.
 
-    ``sent`` holds ``(not_before_s, not_after_s, payload)``: the send call's
-    bounds. An independent check of the receiver: whatever it accepted must be
-    exactly what was sent, and recent. Corrupted, stale or replayed frames fail it.
+    An independent check of the receiver: whatever it applied must be exactly
+    what was sent (corrupted payloads fail) and fresh by the one rule of
+    :func:`~firmware_bridge.freshness.is_fresh` (stale or replayed frames fail).
+
+    Parameters
+    ----------
+    sent
+        ``(not_before_s, not_after_s, payload)`` per feedforward frame: the send call's bounds.
+    applied
+        ``(time_s, payload)`` per frame the drive applied, at the drive cycle it did.
+    period_s
+        The control cycle.
+    max_age_cycles
+        The validity window in cycles (``[can] max_frame_age_cycles``).
+    transport_cycles
+        Cycles a fresh frame takes from the send to its application: 0 stepped,
+        1 in real time (the drive applies at its next cycle), plus one when the
+        RPDO waits for the next SYNC.
+
+    Returns
+    -------
+    int
+        The number of applied frames that fail the check.
     """
     sends: dict[bytes, tuple[list[float], list[float]]] = {}
     for before, after, data in sent:
@@ -202,7 +266,10 @@ def count_unsent_applied(
     bad = 0
     for t, data in applied:
         starts, ends = sends.get(data, ([], []))
-        i = bisect.bisect_right(starts, t + 1e-9)  # the latest send begun by then
-        if i == 0 or t - ends[i - 1] > window_s:
+        i = bisect.bisect_right(starts, t + AGE_TOLERANCE_CYCLES * period_s)  # begun by then
+        if i == 0:
             bad += 1
+            continue
+        age_cycles = (t - ends[i - 1]) / period_s - transport_cycles
+        bad += not is_fresh(age_cycles, max_age_cycles)
     return bad

@@ -99,7 +99,7 @@ def test_real_time_stream_follows_the_nc_sync() -> None:
     cfg = config(sync_master=False, max_current_A=1.0)
     report = run_stream(cfg, lambda t_s: 2.0 * t_s, duration_s=0.3)  # ramps past the limit
     assert report["sync_source"] == "nc" and not report["sync_lost"]
-    assert report["syncs_seen"] >= report["cycles"]
+    assert report["syncs_seen"] >= report["frames_sent"] > 0  # one RPDO per SYNC at most
     assert report["stale_or_corrupt_applied"] == 0
     assert report["max_applied_current_A"] <= cfg.max_current_A
     assert report["frames_applied"] > report["frames_sent"] // 2

@@ -56,7 +56,7 @@ def test_clean_link_applies_every_frame_quantised(profile: str) -> None:
     rig, applied = run(profile)
     report = rig.report()
     assert sum(report["frames_rejected"].values()) == 0
-    first = 1 if profile == "e2e" else 0  # e2e: the first frame sets the counter reference
+    first = 1  # the first frame ever sets the counter reference (firmware_bridge.freshness)
     assert report["frames_applied"] == CYCLES - first
     step = 1e-4 if profile == "e2e" else 2.0 / 1000
     for k in range(first, CYCLES):

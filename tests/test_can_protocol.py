@@ -43,7 +43,8 @@ def test_e2e_at_2_5_kHz_fits_alone_but_not_with_background_traffic() -> None:
 def test_cia402_scaling_is_per_mille_of_rated_current() -> None:
     codec = Cia402Codec(CanConfig(rated_current_A=2.0), load_drive_od(1))
     assert codec.to_raw(0.5) == 250
-    assert codec.rpdo_frame(-250).data == (-250).to_bytes(2, "little", signed=True)
+    # 0x60B2 INTEGER16 little-endian, then the alive counter 0x2001 (cycle modulo 256)
+    assert codec.rpdo_frame(-250, 258).data == (-250).to_bytes(2, "little", signed=True) + b"\x02"
     assert codec.rpdo_cob_id == 0x201 and codec.sync_cob_id == 0x80
 
 

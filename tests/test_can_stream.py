@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import json
+import threading
+import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import can
 import pytest
 
+from firmware_bridge.session import run_stream
+from firmware_bridge.settings import CanConfig
 from gms_comp.cli import main
 from gms_comp.config import default_config_path
 
@@ -94,3 +99,26 @@ def test_bus_load_over_70_percent_is_refused(
     )
     assert main(["stream", str(cfg), "--duration", "0.1"]) == 2
     assert "bus load" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("profile", ["cia402", "e2e"])
+def test_second_compensator_on_the_channel_is_refused(
+    tmp_path: Path, profile: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One compensator per drive: a stream already running on the channel is detected."""
+    channel = f"cli-dup-{profile}-{tmp_path.name}"
+    first = replace(CanConfig(), profile=profile, channel=channel)  # type: ignore[arg-type]
+    reports: list[dict[str, Any]] = []
+    other = threading.Thread(
+        target=lambda: reports.append(run_stream(first, lambda t_s: 0.1, duration_s=1.0))
+    )
+    other.start()
+    try:
+        time.sleep(0.3)  # the first stream is running
+        code = main(["stream", "--profile", profile, "--channel", channel, "--duration", "0.1"])
+    finally:
+        other.join()
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "another node" in err and err.count("\n") == 1
+    assert reports[0]["stale_or_corrupt_applied"] == 0  # the first one was not disturbed

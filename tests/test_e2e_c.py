@@ -126,15 +126,17 @@ def run_both(lib: ctypes.CDLL, events: list[Event]) -> tuple[list[object], list[
 
 
 def vectors(seed: int, n: int = 400) -> list[Event]:
-    """A stream with every kind of fault: drops, duplicates, replays, bit flips, gaps."""
+    """A stream with every kind of fault: drops, delays, duplicates, replays, bit flips, gaps."""
     codec = E2eCodec()
     rng = random.Random(seed)
     sent: list[bytes] = []
     events: list[Event] = []
+    held: dict[int, list[bytes]] = {}
     for cycle in range(n):
         raw = rng.randint(-32767, 32767)
         frame = codec.encode_command(cycle, raw)
         sent.append(frame)
+        events.extend(("frame", old) for old in held.pop(cycle, []))
         r = rng.random()
         if r < 0.05 or 200 <= cycle < 215:  # dropped, and one outage
             pass
@@ -145,6 +147,8 @@ def vectors(seed: int, n: int = 400) -> list[Event]:
         elif r < 0.15 and len(sent) > 3:
             events.append(("frame", sent[-rng.randint(2, 4)]))  # replayed old frame
             events.append(("frame", frame))
+        elif r < 0.25:  # delayed by 1..3 cycles
+            held.setdefault(cycle + rng.randint(1, 3), []).append(frame)
         else:
             events.append(("frame", frame))
             if r > 0.95:
@@ -162,7 +166,23 @@ def test_c_and_python_agree_on_fault_vectors(lib: ctypes.CDLL, seed: int) -> Non
         Verdict.CORRUPT,
         Verdict.DUPLICATE,
         Verdict.OUT_OF_ORDER,
+        Verdict.STALE,
     }
+
+
+@pytest.mark.parametrize("late_by", range(MAX_AGE + 3))
+def test_c_and_python_date_a_late_frame_alike_at_the_boundary(
+    lib: ctypes.CDLL, late_by: int
+) -> None:
+    """Frame 0 sets the reference; frame 1 arrives ``late_by`` cycles after its own cycle:
+    applied up to MAX_AGE cycles late (boundary included), stale beyond."""
+    codec = E2eCodec()
+    events: list[Event] = [("frame", codec.encode_command(0, 100)), ("tick", b"")]
+    events += [("tick", b"")] * late_by
+    events.append(("frame", codec.encode_command(1, 200)))
+    c_out, py_out = run_both(lib, events)
+    expected = Verdict.ACCEPTED if late_by <= MAX_AGE else Verdict.STALE
+    assert c_out == py_out and py_out[-1] is expected
 
 
 @settings(max_examples=60, deadline=None)

@@ -6,12 +6,20 @@
 #include "gms_ff.h"
 
 #define COUNTER_MODULUS 256u
+#define MAX_EARLY_CYCLES 64   /* COUNTER_MODULUS / 4, firmware_bridge.freshness */
+#define REANCHOR_FRAMES 16u   /* firmware_bridge.freshness.REANCHOR_FRAMES */
 
 struct ff_handler {
     struct ff_config cfg;
-    bool synced;
+    /* frame dating, as firmware_bridge.freshness.FrameClock */
+    bool anchored;
+    uint8_t cycle;  /* drive cycles, modulo 256 */
+    uint8_t offset; /* drive cycle minus counter of a frame of age 0 */
+    bool has_last;
     uint8_t last_counter;
-    uint32_t cycles_since_reference;
+    uint8_t late_offset;
+    uint8_t late_counter;
+    uint32_t late_run;
     bool has_fresh;
     int16_t fresh_raw;
     int16_t output_raw;
@@ -50,10 +58,67 @@ void ff_init(struct ff_handler *h, const struct ff_config *cfg)
     h->link_lost = true;
 }
 
-static void take_reference(struct ff_handler *h, uint8_t counter)
+/* a difference of counters/cycles modulo 256, as a signed number in [-128, 127] */
+static int32_t signed_diff(uint32_t value)
 {
+    value %= COUNTER_MODULUS;
+    return value >= COUNTER_MODULUS / 2u ? (int32_t)value - (int32_t)COUNTER_MODULUS
+                                         : (int32_t)value;
+}
+
+static void anchor(struct ff_handler *h, uint8_t counter)
+{
+    h->anchored = true;
+    h->offset = (uint8_t)(h->cycle - counter);
+    h->has_last = true;
     h->last_counter = counter;
-    h->cycles_since_reference = 0;
+    h->late_run = 0u;
+}
+
+/* a frame outside the validity window; a steady run of them re-anchors */
+static enum ff_verdict late(struct ff_handler *h, uint8_t counter)
+{
+    uint8_t offset = (uint8_t)(h->cycle - counter);
+    bool steady = h->late_run > 0u && offset == h->late_offset
+                  && (uint8_t)(counter - h->late_counter) == 1u;
+    h->late_run = steady ? inc_saturating(h->late_run) : 1u;
+    h->late_offset = offset;
+    h->late_counter = counter;
+    if (h->late_run >= REANCHOR_FRAMES) {
+        anchor(h, counter);
+        return FF_RESYNC;
+    }
+    return FF_STALE;
+}
+
+/* firmware_bridge.freshness.FrameClock.judge */
+static enum ff_verdict judge(struct ff_handler *h, uint8_t counter)
+{
+    if (!h->anchored) {
+        anchor(h, counter);
+        return FF_RESYNC;
+    }
+    if (h->has_last) {
+        uint32_t delta = ((uint32_t)counter - h->last_counter) % COUNTER_MODULUS;
+        if (delta == 0u) {
+            return FF_DUPLICATE;
+        }
+        if (delta >= COUNTER_MODULUS / 2u) {
+            return FF_OUT_OF_ORDER;
+        }
+    }
+    /* age in drive cycles; fresh if age <= max_age_cycles (boundary included) */
+    int32_t age = signed_diff((uint32_t)h->cycle - counter - h->offset);
+    if (age > (int32_t)h->cfg.max_age_cycles || age < -MAX_EARLY_CYCLES) {
+        return late(h, counter);
+    }
+    if (age < 0) { /* the anchor came from a late frame: this one is earlier */
+        h->offset = (uint8_t)(h->offset + age);
+    }
+    h->late_run = 0u;
+    h->has_last = true;
+    h->last_counter = counter;
+    return FF_ACCEPTED;
 }
 
 static enum ff_verdict classify(struct ff_handler *h, const uint8_t *data, size_t size)
@@ -70,25 +135,12 @@ static enum ff_verdict classify(struct ff_handler *h, const uint8_t *data, size_
     if (!gms_ff_ff_command_current_is_in_range(msg.current)) {
         return FF_CORRUPT;
     }
-    if (!h->synced) {
-        h->synced = true;
-        take_reference(h, msg.counter);
-        return FF_RESYNC;
+    enum ff_verdict verdict = judge(h, msg.counter);
+    if (verdict == FF_ACCEPTED) {
+        h->has_fresh = true;
+        h->fresh_raw = msg.current;
     }
-    uint32_t delta = ((uint32_t)msg.counter - h->last_counter) % COUNTER_MODULUS;
-    if (delta == 0u) {
-        return FF_DUPLICATE;
-    }
-    if (delta >= COUNTER_MODULUS / 2u) {
-        return FF_OUT_OF_ORDER;
-    }
-    if ((int64_t)h->cycles_since_reference - (int64_t)delta > (int64_t)h->cfg.max_age_cycles) {
-        return FF_STALE;
-    }
-    take_reference(h, msg.counter);
-    h->has_fresh = true;
-    h->fresh_raw = msg.current;
-    return FF_ACCEPTED;
+    return verdict;
 }
 
 int ff_on_frame(struct ff_handler *h, const uint8_t *data, size_t size)
@@ -131,9 +183,9 @@ int16_t ff_tick(struct ff_handler *h)
         }
     }
     h->has_fresh = false;
-    h->cycles_since_reference = inc_saturating(h->cycles_since_reference);
+    h->cycle = (uint8_t)(h->cycle + 1u);
     if (h->link_lost && !was_lost) {
-        h->synced = false; /* the counter reference is void after an outage */
+        h->has_last = false; /* any newer frame may follow an outage; the anchor stays */
     }
     return h->output_raw;
 }

@@ -5,7 +5,8 @@
  * pack/unpack code (gms_ff.h, gms_ff.c) is generated from it with
  *     cantools generate_c_source gms_ff.dbc
  * This file adds what the generator does not: the CRC, the alive counter
- * checks, the range check, and the watchdog that ramps the feedforward to zero
+ * checks, the dating of each frame by its counter (firmware_bridge/freshness.py:
+ * stale = older than max_age_cycles, boundary included), the range check, and the watchdog that ramps the feedforward to zero
  * when frames stop. The rules match firmware_bridge/e2e.py (E2eReceiver) and
  * firmware_bridge/supervisor.py (Supervisor) exactly; the tests feed both the
  * same vectors.
@@ -23,7 +24,7 @@ enum ff_verdict {
     FF_CORRUPT,      /* wrong length, CRC mismatch or value outside the DBC range */
     FF_DUPLICATE,    /* same counter as the last accepted frame */
     FF_OUT_OF_ORDER, /* counter older than the last accepted frame */
-    FF_STALE,        /* newer counter, but older than the drive's cycle count allows */
+    FF_STALE,        /* older than max_age_cycles by its counter against the drive's cycles */
     FF_VERDICT_COUNT
 };
 
@@ -32,7 +33,7 @@ struct ff_config {
     int16_t limit_raw;       /* largest magnitude applied, in 0.1 mA */
     uint32_t timeout_cycles; /* cycles without a fresh value before the link counts as lost */
     uint32_t ramp_cycles;    /* cycles a full-scale ramp to zero may take */
-    uint32_t max_age_cycles; /* tolerated lag of a frame behind the drive's cycle count */
+    uint32_t max_age_cycles; /* validity window: largest age (drive cycles) applied, inclusive */
 };
 
 struct ff_handler;

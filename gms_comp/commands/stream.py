@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from firmware_bridge.faults import parse_fault
-from firmware_bridge.session import FeedforwardSource, run_stream
+from firmware_bridge.session import FeedforwardSource, Rig, stream_on
 from firmware_bridge.settings import CanConfig, load_can_config
 from gms_comp.config import default_config_path
 from gms_comp.errors import GmsCompError
@@ -67,16 +67,10 @@ def run(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise GmsCompError(f"--duration must be a number of seconds > 0, got {args.duration}")
     faults = [parse_fault(spec) for spec in args.fault]
-    source = gms_observer_source(config_path, cfg, args.duration)
-    report = run_stream(
-        cfg,
-        source,
-        args.duration,
-        faults,
-        args.seed,
-        args.log,
-        builtin_drive=not args.external_drive,
-    )
+    # the rig opens first: another compensator on the channel is refused before the work
+    with Rig(cfg, faults, args.seed, args.log, builtin_drive=not args.external_drive) as rig:
+        source = gms_observer_source(config_path, cfg, args.duration)
+        report = stream_on(rig, source, args.duration)
     report["source"] = "gms_observer"
     text = json.dumps(report, indent=2, sort_keys=True)
     if args.json is not None:

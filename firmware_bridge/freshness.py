@@ -1,0 +1,137 @@
+"""When a received frame counts as stale: the one definition of the drive side and the audit.
+
+Every feedforward frame carries an 8-bit alive counter: the compensator's
+control-cycle index modulo 256 (e2e: the DBC's ``Counter`` signal; cia402: the
+object 0x2001 mapped into RPDO1 beside 0x60B2). The drive dates a frame by that
+counter against its own cycle count: the first frame ever sets the
+correspondence (the *anchor*), and a frame's **age** is how many drive cycles
+it arrives after the cycle its counter belongs to.
+
+The rule, shared by :class:`FrameClock`, ``firmware_bridge/c/ff_handler.c``
+and the stream audit (:func:`firmware_bridge.streamer.count_unsent_applied`):
+
+    a frame is fresh if ``age <= max_age_cycles`` (boundary **included**),
+    compared through :func:`is_fresh` with a tolerance of
+    :data:`AGE_TOLERANCE_CYCLES` for ages measured in float time.
+
+A frame that arrives early (negative age) shows the anchor was set by a late
+frame: the anchor moves to it, so ages only ever get stricter. The anchor
+outlives a lost link (compensator and drive keep counting cycles), so the first
+frame after an outage is judged like any other. Only a steady run of
+:data:`REANCHOR_FRAMES` consecutive frames that are all late by the same amount
+(a restarted compensator, a drifted clock) re-anchors, without applying them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .supervisor import Verdict
+
+COUNTER_MODULUS = 256
+AGE_TOLERANCE_CYCLES = 1e-6
+"""Slack on the boundary for ages computed from float times, in cycles (1 ns at 1 ms)."""
+MAX_EARLY_CYCLES = COUNTER_MODULUS // 4
+"""A frame further ahead of the anchor than this is taken as an old one, wrapped around."""
+REANCHOR_FRAMES = 16
+"""Consecutive frames late by the same amount that re-establish the anchor."""
+
+
+def is_fresh(age_cycles: float, max_age_cycles: float) -> bool:
+    """Whether a frame ``age_cycles`` old may be applied; the boundary is included.
+
+    Parameters
+    ----------
+    age_cycles
+        Age of the frame in control cycles (an integer on the drive, a float in
+        the audit, where it comes from timestamps).
+    max_age_cycles
+        The validity window in cycles.
+
+    Returns
+    -------
+    bool
+        ``age_cycles <= max_age_cycles`` up to :data:`AGE_TOLERANCE_CYCLES`.
+    """
+    return age_cycles <= max_age_cycles + AGE_TOLERANCE_CYCLES
+
+
+def _signed(value: int) -> int:
+    """``value`` modulo the counter range, as a signed difference."""
+    value %= COUNTER_MODULUS
+    return value - COUNTER_MODULUS if value >= COUNTER_MODULUS // 2 else value
+
+
+@dataclass
+class FrameClock:
+    """Classifies frames by their alive counter against the receiver's cycle count.
+
+    Parameters
+    ----------
+    max_age_cycles
+        Validity window: the largest age, in drive cycles, of an applied frame.
+
+    Call :meth:`judge` for each intact frame, :meth:`tick` once per drive
+    cycle, and :meth:`link_lost` when the supervisor declares the link lost.
+    """
+
+    max_age_cycles: int
+    cycle: int = 0  # drive cycles, modulo the counter range
+    anchored: bool = False
+    offset: int = 0  # drive cycle minus counter of a frame of age 0
+    last_counter: int | None = None
+    _late_offset: int | None = None
+    _late_run: int = 0
+    _late_counter: int = 0
+
+    def tick(self) -> None:
+        """One drive cycle has passed."""
+        self.cycle = (self.cycle + 1) % COUNTER_MODULUS
+
+    def link_lost(self) -> None:
+        """Forget the last counter (the anchor stays): any newer frame may follow."""
+        self.last_counter = None
+
+    def age(self, counter: int) -> int:
+        """Drive cycles the frame with ``counter`` arrives after its own cycle."""
+        return _signed(self.cycle - counter - self.offset)
+
+    def judge(self, counter: int) -> Verdict:
+        """Verdict on an intact frame carrying ``counter``; accepted frames are the new last."""
+        if not self.anchored:
+            self._anchor(counter)
+            return Verdict.RESYNC
+        if self.last_counter is not None:
+            delta = (counter - self.last_counter) % COUNTER_MODULUS
+            if delta == 0:
+                return Verdict.DUPLICATE
+            if delta >= COUNTER_MODULUS // 2:
+                return Verdict.OUT_OF_ORDER
+        age = self.age(counter)
+        if not is_fresh(age, self.max_age_cycles) or age < -MAX_EARLY_CYCLES:
+            return self._late(counter)
+        if age < 0:  # the anchor came from a late frame: this one is earlier
+            self.offset = (self.offset + age) % COUNTER_MODULUS
+        self._late_run = 0
+        self.last_counter = counter
+        return Verdict.ACCEPTED
+
+    def _late(self, counter: int) -> Verdict:
+        offset = (self.cycle - counter) % COUNTER_MODULUS
+        steady = (
+            self._late_run > 0
+            and offset == self._late_offset
+            and (counter - self._late_counter) % COUNTER_MODULUS == 1
+        )
+        self._late_run = self._late_run + 1 if steady else 1
+        self._late_offset, self._late_counter = offset, counter
+        if self._late_run >= REANCHOR_FRAMES:
+            self._anchor(counter)
+            return Verdict.RESYNC
+        return Verdict.STALE
+
+    def _anchor(self, counter: int) -> None:
+        self.anchored = True
+        self.offset = (self.cycle - counter) % COUNTER_MODULUS
+        self.last_counter = counter
+        self._late_run = 0
