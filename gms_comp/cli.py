@@ -23,6 +23,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     "sweep",
     "stream",
     "simulate",
+    "replay",
     "table",
     "bench",
 )

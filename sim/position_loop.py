@@ -234,6 +234,29 @@ def _accel(p: FloatArray, q: float, v: float, force: float, gms_f: float, extra:
 
 
 @numba.njit(cache=True)
+def _friction_along(
+    plant: FloatArray, g: Any, q: FloatArray, v: FloatArray, out: FloatArray
+) -> None:  # pragma: no cover
+    path = np.zeros(7)
+    for i in range(q.size):
+        gms_f, extra = _held(plant, g, path, q[i], v[i])
+        out[i] = _memoryless(plant, q[i], v[i], gms_f) + extra
+
+
+def friction_along(
+    model: RigidAxisModel, position_m: FloatArray, velocity_m_s: FloatArray
+) -> FloatArray:
+    """The model's friction (offset included) along a given motion, one sub-step per
+    sample, from the virgin state: the force the plant feels, open loop."""
+    out = np.zeros(len(position_m))
+    _friction_along(
+        model.params(), model.gms_kernel(), np.ascontiguousarray(position_m, float),
+        np.ascontiguousarray(velocity_m_s, float), out,
+    )  # fmt: skip
+    return out
+
+
+@numba.njit(cache=True)
 def run_position_loop(
     loop: FloatArray,
     plant: FloatArray,
