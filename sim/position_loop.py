@@ -45,7 +45,7 @@ _T, _KP, _KV, _GAIN, _LIMIT, _DELAY, _SUBSTEPS, _NTAPS, _TAPS = range(9)
 # ... and of the plant's.
 (_MASS, _OFFSET, _FC_POS, _FC_NEG, _FV_POS, _FV_NEG, _STRIBECK_RATIO, _STRIBECK_V,
  _REV_AMP, _REV_LEN, _RIPPLE_AMP, _RIPPLE_WL, _RIPPLE_PHASE, _LAG, _HAS_GMS,
- _N_PLANT) = range(16)  # fmt: skip
+ _REV_DEADBAND, _N_PLANT) = range(17)  # fmt: skip
 
 _NO_GMS = GmsStream(GmsParams(np.ones(1), np.zeros(1))).kernel
 
@@ -105,8 +105,8 @@ class RigidAxisModel:
     ``friction = Fc(dir) sign(v) + Fv(dir) v + GMS(q) (1 + (ratio - 1) exp(-(v/v_s)^2))
     + A_rev dir exp(-s_rev / L_rev) + A_rip sin(2 pi q / lambda + phi) + offset``,
     with ``dir`` the direction of motion and ``s_rev`` the travel since the last
-    reversal. ``drive_lag_s`` > 0 makes the axis force a first-order lag of the
-    drive's command.
+    reversal (a retreat of more than ``reversal_deadband_m``). ``drive_lag_s`` > 0 makes
+    the axis force a first-order lag of the drive's command.
     """
 
     mass_kg: float
@@ -124,6 +124,7 @@ class RigidAxisModel:
     ripple_wavelength_m: float = 1.0
     ripple_phase_rad: float = 0.0
     drive_lag_s: float = 0.0
+    reversal_deadband_m: float = 0.0
 
     def params(self) -> FloatArray:
         """The compiled plant's parameter vector."""
@@ -136,6 +137,7 @@ class RigidAxisModel:
         p[_RIPPLE_AMP], p[_RIPPLE_WL] = self.ripple_amplitude_N, self.ripple_wavelength_m
         p[_RIPPLE_PHASE], p[_LAG] = self.ripple_phase_rad, self.drive_lag_s
         p[_HAS_GMS] = 0.0 if self.gms is None else 1.0
+        p[_REV_DEADBAND] = self.reversal_deadband_m
         return p
 
     def gms_kernel(self) -> Any:
@@ -193,12 +195,14 @@ def _memoryless(p: FloatArray, q: float, v: float, gms_force: float) -> float:  
 
 
 @numba.njit(cache=True)
-def _reversal_step(path: FloatArray, q: float, v: float) -> float:  # pragma: no cover
+def _reversal_step(
+    path: FloatArray, q: float, v: float, deadband: float
+) -> float:  # pragma: no cover
     """Advance the path to ``q``; return the direction of motion (0 before any).
 
     ``path = [started, last q, travel, direction, furthest q, travel there, travel at
-    the last reversal]``: a reversal is any retreat from the furthest point reached
-    (the simulated position has no noise), and counts from that point."""
+    the last reversal]``: a reversal is a retreat of more than ``deadband`` from the
+    furthest point reached, and counts from that point (as the catalogue's path)."""
     if path[0] != 0.0:
         path[2] += abs(q - path[1])
     path[0] = 1.0
@@ -210,7 +214,7 @@ def _reversal_step(path: FloatArray, q: float, v: float) -> float:  # pragma: no
             path[4], path[5], path[6] = q, path[2], path[2]
     elif (q - path[4]) * d >= 0.0:
         path[4], path[5] = q, path[2]
-    else:
+    elif (path[4] - q) * d > deadband:
         path[3] = -d
         path[6] = path[5]
         path[4], path[5] = q, path[2]
@@ -223,7 +227,7 @@ def _held(p: FloatArray, g: Any, path: FloatArray, q: float, v: float) -> tuple[
     gms_force = gms_kernel.stream_step(g, q, v) if p[_HAS_GMS] != 0.0 else 0.0
     transient = 0.0
     if p[_REV_AMP] != 0.0:
-        d = _reversal_step(path, q, v)
+        d = _reversal_step(path, q, v, p[_REV_DEADBAND])
         transient = p[_REV_AMP] * d * math.exp(-(path[2] - path[6]) / p[_REV_LEN])
     return gms_force, transient
 

@@ -74,6 +74,16 @@ def register(subparsers: Any) -> None:
         help="cycles of t[9]-t[8] as the benchmark's Simulink model (default), or the samples",
     )
     p.add_argument(
+        "--reversal-deadband",
+        type=float,
+        default=rp.REVERSAL_DEADBAND_M,
+        metavar="M",
+        help=(
+            "retreat in m before a table's reversal transient starts again in the simulated "
+            f"axis (default {rp.REVERSAL_DEADBAND_M:g}, chosen on DATA_EMPS)"
+        ),
+    )
+    p.add_argument(
         "--link",
         choices=("can", "direct"),
         default="can",
@@ -100,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
         controller = parse_section(read_toml(args.config), args.config, "controller",
                                    ControllerConfig)  # fmt: skip
     record = rp.load_record(args.trace, controller, args.time_base)
-    choice = rp.load_model(args.model)
+    choice = rp.load_model(args.model, args.reversal_deadband)
     print(f"replaying {Path(args.trace).name} with the {choice.name} model ...", file=sys.stderr)
     started = time.perf_counter()
     model_run = rp.replay(record, choice.axis)
