@@ -32,6 +32,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     "sweep",
     "stream",
     "simulate",
+    "replay",
     "table",
     "bench",
 )

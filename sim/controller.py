@@ -57,6 +57,16 @@ class ControllerConfig:
     discretization: Literal["tustin", "zoh", "foh", "backward_diff"] = "tustin"
     acceleration_feedforward: bool = True
     acceleration_lead_cycles: int = field(default=1, metadata=in_range(0, 100))
+    # structure = "position_velocity": the drive-command loop of sim.position_loop (the
+    # EMPS benchmark's; defaults are its gains): u = kv (kp (qg - q) - d/dt FIR(q)),
+    # delayed, saturated, times the drive gain.
+    structure: Literal["cascade", "position_velocity"] = "cascade"
+    kp_per_s: float = field(default=160.18, metadata=positive())
+    kv_command_s_per_m: float = field(default=243.45, metadata=positive())
+    drive_gain_N_per_command: float = field(default=35.15065188248547, metadata=positive())
+    command_limit: float = field(default=10.0, metadata=positive())
+    command_delay_cycles: int = field(default=1, metadata=in_range(0, 100))
+    velocity_fir: tuple[float, ...] = (0.5, 0.5)
 
     @property
     def servo_period_s(self) -> float:
@@ -74,6 +84,8 @@ class ControllerConfig:
             found.append(("position_bandwidth_Hz", "must be below velocity_bandwidth_Hz"))
         if self.integral_corner_Hz >= self.velocity_bandwidth_Hz:
             found.append(("integral_corner_Hz", "must be below velocity_bandwidth_Hz"))
+        if not 1 <= len(self.velocity_fir) <= 8 or abs(sum(self.velocity_fir) - 1.0) > 1e-9:
+            found.append(("velocity_fir", "must be 1 to 8 taps that sum to 1"))
         return found
 
 
