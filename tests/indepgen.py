@@ -64,14 +64,18 @@ MAIN_PARAMETER = {
     "sensor_lowpass": "cutoff_Hz",
 }
 UNKNOWN = ("unknown_stroke_profile", "unknown_bumps", "unknown_time_modulation")
-# (larger, smaller): the larger one's force contribution is three times the smaller one's
-PAIRS = (
-    ("viscous", "offset"),
-    ("inertia", "position_ripple"),
-    ("position_ripple", "viscous"),
-    ("offset", "stribeck"),
-    ("drift", "reversal_transient"),
-)
+# (larger, smaller): the larger one is drawn at the size given here (a fraction of the sliding
+# level, in its own terms), then the smaller one's main parameter is scaled so that its force
+# contribution's RMS over the trace is a third of the larger one's. The larger ones are
+# effects present all along the trace, so the smaller one stays well above the noise.
+PAIR_SIZES = {
+    ("offset", "viscous"): 0.15,
+    ("drift", "offset"): 0.3,
+    ("position_ripple", "inertia"): 0.3,
+    ("offset", "stribeck"): 0.3,
+    ("drift", "reversal_transient"): 0.3,
+}
+PAIRS = tuple(PAIR_SIZES)
 CASES = ("none", *CATALOGUE, *UNKNOWN, *(f"pair_{a}_{b}" for a, b in PAIRS))
 PAIR_SIZE_RATIO = 3.0
 
@@ -323,19 +327,34 @@ def draw_effect(name: str, size: float, truth: Truth, rng: np.random.Generator) 
         centre = 0.5 * (x.max() + x.min())
         p = {"beta": 1.5 * size, "centre_m": centre, "half_stroke_m": 0.5 * (x.max() - x.min())}
     elif name == "unknown_bumps":
-        sliding = truth.position_m[np.abs(truth.velocity_m_s) > 1e-3]
-        chosen = rng.choice(sliding, size=int(rng.integers(2, 5)), replace=False)
+        chosen = rng.choice(_often_crossed(truth), size=int(rng.integers(2, 5)), replace=False)
         p = {"height": 1.5 * size, "width_m": rng.uniform(0.1e-3, 0.5e-3)}
         p |= {f"position_m_{i}": float(c) for i, c in enumerate(chosen)}
     elif name == "unknown_time_modulation":
+        lowest = max(0.05, 4.0 / duration)  # at least four periods: no drift can follow it
         p = {
             "beta": size,
-            "frequency_Hz": rng.uniform(0.05, 0.3),
+            "frequency_Hz": rng.uniform(lowest, max(0.3, 2.0 * lowest)),
             "phase_rad": rng.uniform(-np.pi, np.pi),
         }
     else:
         raise ValueError(f"unknown effect {name!r}")
     return name, p
+
+
+def _often_crossed(truth: Truth) -> np.ndarray:
+    """Positions crossed most often in sliding (>= 1 mm apart), so a bump there is seen
+    many times, in both directions, in the training and the held-out parts of a trace."""
+    x = truth.position_m[:: max(truth.position_m.size // 20_000, 1)]
+    grid = np.linspace(x.min(), x.max(), 202)[1:-1]
+    crossings = np.count_nonzero(np.diff(np.sign(x[:, None] - grid), axis=0), axis=0)
+    picked: list[float] = []
+    for k in np.argsort(crossings)[::-1]:
+        if all(abs(grid[k] - c) >= 1e-3 for c in picked):
+            picked.append(float(grid[k]))
+        if len(picked) == 6:
+            break
+    return np.array(picked)
 
 
 def _scale_main(effect: Effect, factor: float) -> Effect:
@@ -382,7 +401,7 @@ def _effects_for(
         return (draw_effect(case, rng.uniform(0.15, 0.3), truth, rng),), "unknown"
     for big_name, small_name in PAIRS:
         if case == f"pair_{big_name}_{small_name}":
-            big = draw_effect(big_name, 0.3, truth, rng)
+            big = draw_effect(big_name, PAIR_SIZES[big_name, small_name], truth, rng)
             small = draw_effect(small_name, 0.1, truth, rng)
             base = friction(truth, ())
             big_rms = np.sqrt(np.mean((friction(truth, (big,)) - base) ** 2))
