@@ -16,8 +16,8 @@ import json
 import sys
 import time
 
+from gms_comp.commands.demo_trace import MAIN_PARAMETER, generate
 from gms_comp.diagnosis.run import diagnose
-from sim.tracegen import MAIN_PARAMETER, generate
 
 # The relative tolerances the tests state (tests/test_diagnosis.py).
 TOLERANCE = {

@@ -20,6 +20,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     "model",
     "diagnose",
     "profile",
+    "demo_trace",
     "sweep",
     "stream",
     "simulate",

@@ -8,13 +8,13 @@ from pathlib import Path
 import pytest
 
 from gms_comp.cli import main
+from gms_comp.commands.demo_trace import MAIN_PARAMETER, generate, scaled_table_trace
 from gms_comp.config import load_ball_config
 from gms_comp.diagnosis.run import diagnose
 from gms_comp.gms import GmsParams
 from gms_comp.reduction import reduce_to_gms
 from gms_comp.table import GmsTable, read_table, write_table
 from gms_comp.traces import Trace, write_trace
-from sim.tracegen import MAIN_PARAMETER, generate, scaled_table_trace
 
 # Relative tolerance on the main parameter of each effect (over seeds 1-5 the worst
 # errors were: dwell_time gamma 12 % (tau comes out up to 40 % high and gamma with it),

@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
     if trace.force_kind == "drive" and kind == "drive":
         doc.update(_benchmark_errors(trace, validation, result))
     if args.closed_loop is not None:
-        from ..diagnosis.closed_loop import closed_loop_gain  # the simulated axis when asked
+        from .diagnose_closed_loop import closed_loop_gain  # the simulated axis when asked
 
         doc["closed_loop"] = closed_loop_gain(result, args.closed_loop or None)
     table_path = args.table or (Path(args.report) / "extended.table.json" if args.report else None)
