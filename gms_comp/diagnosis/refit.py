@@ -20,9 +20,10 @@ import numpy as np
 from .. import effects as fx
 from ..gms import GmsParams, simulate
 from .baseline import Baseline, FittedPart, rebased, refine_slip_level, refit_gms_force
-from .candidates import Option, design, effect_of, widths
+from .candidates import Option, Scorer, design, effect_of, widths
+from .config import DiagnosisConfig
 from .design import FloatArray, GramDesign, rms, train_rms
-from .selection import Selection, local_search
+from .selection import Selection, admissible, local_search
 
 JOINT_REFITS = 3
 REFIT_SHAPES = (fx.DwellTime, fx.Drift)
@@ -49,17 +50,27 @@ class Extended:
     held_residual_N: FloatArray
 
 
-def refit(selection: Selection) -> Extended:
+def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
     """All coefficients fitted jointly with every kept effect present; the extended
-    model (GMS kernel, then the effects) simulated along every part."""
+    model (GMS kernel, then the effects) simulated along every part.
+
+    Once the slip level is refined with the kept effects present, a later-ranked effect
+    that is no longer admissible on top of the others (it stood in for a slip level the
+    blind baseline had not found) is dropped."""
     baseline = selection.baseline
     chosen = list(selection.chosen)
+    history = list(selection.heldout_rms_N)
     parts = baseline.parts
     basis = baseline.basis
     if chosen:
         slip = refine_slip_level(baseline, lambda p: _train_rms(p, chosen))
         if slip is not None:
             basis, parts = slip, rebased(baseline, slip)
+        for i in range(len(chosen) - 1, 0, -1):
+            others = chosen[:i] + chosen[i + 1 :]
+            trial = Scorer(parts, others)
+            if not admissible(cfg, trial, trial.score(chosen[i]), baseline.sliding_force_N):
+                del chosen[i], history[i]
     theta = GramDesign(design(parts, chosen)).fit()
     for _ in range(JOINT_REFITS if chosen else 0):
         parts = refit_gms_force(parts, theta)
@@ -70,7 +81,7 @@ def refit(selection: Selection) -> Extended:
     w = widths(parts, chosen)
     ranked = tuple(
         Ranked(effect_of(o, chosen, theta, base_width, w), h)
-        for o, h in zip(chosen, selection.heldout_rms_N, strict=True)
+        for o, h in zip(chosen, history, strict=True)
     )
     gms = basis.gms(theta[:n])
     extensions = [r.effect for r in ranked]

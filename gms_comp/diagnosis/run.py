@@ -85,7 +85,7 @@ def _diagnose(
     baseline = fit_baseline(prepared, cfg, table)
     selection = select(baseline, cfg, say)
     say("joint refit")
-    extended = refit(selection)
+    extended = refit(selection, cfg)
     say("residual structure")
     structure = residual_structure(
         baseline.parts, extended.predictions, baseline.presliding_m, baseline.sliding_force_N,
