@@ -42,12 +42,12 @@ Basis = FreeBasis | TableBasis
 # speeds of an identification trace: v_t is at most a tenth of the top speed (the
 # level is then within 2 % of C_v at a fifth of it), so that the slip level cannot stand
 # in for a viscous law over the trace's speeds.
-SLIP_LEVELS = (1.1, 1.25, 1.5, 2.0)
+SLIP_LEVELS = (1.15, 1.4, 1.9)
 SLIP_LEVEL_RANGE = (1.0, 3.0)
 MIN_TRANSITION_M_S = 1e-7
 TRANSITION_FRACTIONS = (1 / 5000, 1 / 10)
-TRANSITION_POINTS = 5
-REFINE_ROUNDS = 12
+TRANSITION_POINTS = 4
+REFINE_ROUNDS = 8
 REFINE_STEPS = ((0.1, 2.0), (0.05, 1.4), (0.02, 1.15))  # C_v +-, v_t x/ (shrinking)
 
 
@@ -268,7 +268,7 @@ def refine_slip_level(
     vt_range = _transition_range(vmax)
     best = (cost(baseline.parts), basis.slip_level, basis.transition_velocity_m_s)
     rounds = 0
-    for d_cv, f_vt in REFINE_STEPS:
+    for d_cv, f_vt in REFINE_STEPS[1:]:  # from near the blind baseline's optimum
         while rounds < REFINE_ROUNDS:
             rounds += 1
             start = best

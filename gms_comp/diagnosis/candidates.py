@@ -121,7 +121,7 @@ class Scorer:
         extra = [opt.columns(fp, self.filters) for fp in self.parts]
         theta, held = self.gram.trial(extra)
         support = np.concatenate(
-            [_acting(e.values)[fp.part.held] for e, fp in zip(extra, self.parts, strict=True)]
+            [_acting(e.values[fp.part.held]) for e, fp in zip(extra, self.parts, strict=True)]
         )
         return Trial(opt, rms(held), theta, held, support)
 

@@ -90,6 +90,8 @@ class GramDesign:
     def __init__(self, parts: Sequence[PartDesign]) -> None:
         self.parts = tuple(parts)
         self.lower = self.parts[0].columns.lower
+        self._train_rows = [np.flatnonzero(p.train) for p in self.parts]
+        self._held_rows = [np.flatnonzero(p.held) for p in self.parts]
         self._train_a = [p.columns.values[p.train] for p in self.parts]
         self._train_y = [p.force_N[p.train] for p in self.parts]
         self.gram = sum(
@@ -117,8 +119,10 @@ class GramDesign:
         cross = np.zeros((m, q))
         inner = np.zeros((q, q))
         rhs = np.zeros(q)
-        for p, a, y, e in zip(self.parts, self._train_a, self._train_y, extra, strict=True):
-            b = e.values[p.train]
+        for rows, a, y, e in zip(
+            self._train_rows, self._train_a, self._train_y, extra, strict=True
+        ):
+            b = np.take(e.values, rows, axis=0)
             cross += a.T @ b
             inner += b.T @ b
             rhs += b.T @ y
@@ -127,8 +131,8 @@ class GramDesign:
             gram, np.concatenate([self.rhs, rhs]), np.concatenate([self.lower, extra[0].lower])
         )
         pred = [
-            a @ theta[:m] + e.values[p.held] @ theta[m:]
-            for a, p, e in zip(self._held_a, self.parts, extra, strict=True)
+            a @ theta[:m] + np.take(e.values, rows, axis=0) @ theta[m:]
+            for a, rows, e in zip(self._held_a, self._held_rows, extra, strict=True)
         ]
         return theta, self._held_y - np.concatenate(pred)
 
