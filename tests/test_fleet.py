@@ -120,8 +120,7 @@ def test_fleet_calibrates_one_catalogue_table_per_trace(
     like, unlike = tmp_path / "like.csv", tmp_path / "unlike.csv"
     write_trace(like, scaled_table_trace(table.params, 1.3, 0.7, seed=4))
     write_trace(unlike, generate("none", 10).trace)
-    out = tmp_path / "fleet.json"
     args = ["diagnose", str(like), str(unlike), "--table-in", str(table_path), "--serial"]
-    assert main([*args, "--json", str(out)]) == 0
-    rows = json.loads(out.read_text())["traces"]
+    assert main([*args, "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["traces"]
     assert [r["baseline_source"] for r in rows] == ["table", "free_nnls"]
