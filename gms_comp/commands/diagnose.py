@@ -250,10 +250,13 @@ def _run_fleet(args: argparse.Namespace, mapping: Mapping[str, str] | None) -> i
     else:
         with dask_client(args.scheduler, args.workers) as client:
             fleet = diagnose_fleet(jobs, client=client)
+    written = [p for row in fleet["traces"] for p in row.get("report", [])]
     if args.json:
         sys.stdout.write(json.dumps(fleet, indent=2) + "\n")
     else:
         print(format_table(fleet))
+    for path in written:
+        print(f"wrote {path}", file=sys.stderr if args.json else sys.stdout)
     return 0 if all(row["status"] == "ok" for row in fleet["traces"]) else 1
 
 
