@@ -25,12 +25,12 @@ from typing import Any
 
 import numpy as np
 
+from gms_comp.commands.demo_trace import generate
 from gms_comp.config import default_config_path
 from gms_comp.fleet import FleetJob, diagnose_fleet, diagnose_one
 from gms_comp.scaleout import dask_client
 from gms_comp.sweep import load_sweep, run_sweep
 from gms_comp.traces import write_trace
-from sim.tracegen import generate
 
 NIGHT_S = 10 * 3600.0
 

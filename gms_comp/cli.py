@@ -29,6 +29,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     "config",
     "diagnose",
     "profile",
+    "demo_trace",
     "sweep",
     "stream",
     "simulate",

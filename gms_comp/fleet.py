@@ -10,6 +10,7 @@ guide type, a lubricant, a supplier's batch) is worth more than any one trace.
 
 from __future__ import annotations
 
+import re
 import statistics
 from collections import defaultdict
 from collections.abc import Mapping, Sequence
@@ -30,8 +31,26 @@ class FleetJob:
     force_kind: str | None = None
     config: str | None = None
     mapping: tuple[tuple[str, str], ...] = ()
-    report_dir: str | None = None
+    report_dir: str | None = None  # this trace's own report folder (see report_names)
     table: GmsParams | None = None  # a baseline GMS to calibrate (else the free NNLS GMS)
+
+
+def report_names(traces: Sequence[str]) -> list[str]:
+    """One report folder name per trace, unique and safe whatever the trace names: the
+    file's stem with anything but letters, digits, ``-`` and ``_`` replaced (so no
+    ``..``, separator or hidden name leaves the report folder), and ``-2``, ``-3`` ...
+    for a name already taken (two traces of one name in different folders)."""
+    names: list[str] = []
+    taken: set[str] = set()
+    for trace in traces:
+        stem = re.sub(r"[^A-Za-z0-9_-]+", "_", Path(trace).stem).strip("_") or "trace"
+        name, k = stem, 1
+        while name.lower() in taken:
+            k += 1
+            name = f"{stem}-{k}"
+        taken.add(name.lower())
+        names.append(name)
+    return names
 
 
 def diagnose_one(job: FleetJob) -> dict[str, Any]:
@@ -61,9 +80,7 @@ def diagnose_one(job: FleetJob) -> dict[str, Any]:
     if job.report_dir is not None:
         from .diagnosis.report import write_report
 
-        folder = Path(job.report_dir) / Path(job.trace).stem
-        folder.mkdir(parents=True, exist_ok=True)
-        row["report"] = [str(p) for p in write_report(result, folder)]
+        row["report"] = [str(p) for p in write_report(result, job.report_dir)]
     return row
 
 

@@ -1,10 +1,10 @@
-"""Measured-like traces with a hidden effect, for blind tests of the diagnosis.
+"""The GMS truth of simulated measured traces: an identification trajectory and the
+friction force of a GMS along it, then the sensors (noise, encoder and ADC steps).
 
-The truth is a GMS friction model (the project's kernel, :mod:`gms_comp.gms`) run along
-an identification trajectory; one catalogue effect (or none) drawn at random is applied
-with :mod:`gms_comp.effects`, then sensor noise and the quantisation of an encoder and a
-force ADC. The effect sizes are drawn in ranges that matter for compensation (a tenth to
-a third of the sliding force), not at the edge of detectability.
+Only the runtime's GMS kernel (:mod:`gms_comp.gms`) is used here: catalogue effects are
+applied at the application level (``gms-comp demo-trace``,
+:mod:`gms_comp.commands.demo_trace`), and the blind tests of the diagnosis use an
+independent generator (tests/indepgen.py) that shares no code with the project.
 """
 
 from __future__ import annotations
@@ -15,25 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from gms_comp import effects as fx
 from gms_comp.gms import GmsParams, simulate
-from gms_comp.traces import Trace
 
 FloatArray = NDArray[np.float64]
-
-# The main parameter of each spec catalogue effect, as the diagnosis must recover it.
-MAIN_PARAMETER = {
-    "viscous": "c_Ns_per_m",
-    "stribeck": "ratio",
-    "dwell_time": "gamma",
-    "position_ripple": "wavelength_m",
-    "offset": "offset_N",
-    "reversal_transient": "amplitude_N",
-    "drift": "kappa",
-    "inertia": "mass_kg",
-    "sensor_lowpass": "cutoff_Hz",
-}
-HIDDEN_CHOICES = (*MAIN_PARAMETER, "none")
 
 TRUTH_GMS = GmsParams(
     stiffness_N_per_m=np.array([4.0, 3.0, 2.5, 2.0, 1.5])
@@ -96,79 +80,46 @@ def identification_profile(
 
 
 @dataclass(frozen=True)
-class GeneratedTrace:
-    trace: Trace
-    hidden: fx.Effect | None
-    force_kind: str
+class Truth:
+    """A trajectory and the truth GMS's friction force along it (SI units)."""
+
+    time_s: FloatArray
+    position_m: FloatArray
+    velocity_m_s: FloatArray
+    acceleration_m_s2: FloatArray
+    gms_force_N: FloatArray
+    sliding_force_N: float
 
 
-def draw_effect(
-    name: str, rng: np.random.Generator, t: FloatArray, v: FloatArray
-) -> fx.Effect | None:
-    """One effect of the catalogue with parameters drawn in a range that matters."""
-    level = float(np.sum(TRUTH_GMS.limit_N))
-    vmax = float(np.max(np.abs(v)))
-    amax = float(np.max(np.abs(np.gradient(v, t))))
-    u = rng.uniform
-    if name == "none":
-        return None
-    effects: dict[str, fx.Effect] = {
-        "viscous": fx.Viscous(u(0.15, 0.4) * level / vmax),
-        "stribeck": fx.Stribeck(u(1.3, 1.8), u(0.05, 0.2) * vmax),
-        "dwell_time": fx.DwellTime(u(0.15, 0.3), u(0.01, 0.05), TRUTH_PRESLIDING_M),
-        "position_ripple": fx.PositionRipple(
-            u(0.08, 0.2) * level, u(0.5e-3, 3e-3), u(-math.pi, math.pi)
-        ),
-        "offset": fx.Offset(float(rng.choice([-1, 1])) * u(0.08, 0.2) * level),
-        "reversal_transient": fx.ReversalTransient(u(0.15, 0.3) * level, u(20e-6, 80e-6)),
-        "drift": fx.Drift(u(0.15, 0.3), u(0.1, 0.4) * float(t[-1])),
-        "inertia": fx.Inertia(u(0.3, 0.6) * level / amax),
-        "sensor_lowpass": fx.SensorLowpass(u(5.0, 25.0), int(rng.integers(1, 3))),
-    }
-    return effects[name]
-
-
-def generate(
-    hidden: str,
-    seed: int,
-    scale: float = 0.5,
-    sample_rate_Hz: float = 1000.0,
-    noise_fraction: float = 0.01,
-    position_resolution_m: float = 1e-7,
-) -> GeneratedTrace:
-    """A friction-force trace of the truth model with the effect ``hidden`` (or "none")."""
-    if hidden not in HIDDEN_CHOICES:
-        raise ValueError(f"unknown hidden effect {hidden!r}")
-    rng = np.random.default_rng(seed)
+def truth(
+    params: GmsParams = TRUTH_GMS, scale: float = 0.5, sample_rate_Hz: float = 1000.0
+) -> Truth:
+    """The friction force of ``params`` along :func:`identification_profile`."""
     t, x, v = identification_profile(sample_rate_Hz, scale)
-    a = np.gradient(v, t)
-    gms_force = simulate(TRUTH_GMS, x, v)[0]
-    effect = draw_effect(hidden, rng, t, v)
-    extensions = [] if effect is None else [effect]
-    ctx = fx.Context.along(t, x, v, a, gms_force, 0.01 * float(np.max(np.abs(v))))
-    force = fx.apply_extensions(extensions, ctx)
-    level = float(np.sum(TRUTH_GMS.limit_N))
-    force = force + rng.normal(0.0, noise_fraction * level, force.size)
-    adc_step = level / 4000  # a 12-bit force channel over +-2x the sliding force
-    force = np.round(force / adc_step) * adc_step
-    measured_x = np.round(x / position_resolution_m) * position_resolution_m
-    trace = Trace(
-        source=f"tracegen:{hidden}:{seed}", time_s=t, position_m=measured_x, force_N=force
+    a = np.asarray(np.gradient(v, t), dtype=np.float64)
+    force = simulate(params, x, v)[0]
+    return Truth(t, x, v, a, force, float(np.sum(params.limit_N)) * params.slip_level)
+
+
+def measure(
+    force_N: FloatArray, position_m: FloatArray, level_N: float, rng: np.random.Generator,
+    noise_fraction: float = 0.01, position_resolution_m: float = 1e-7,
+) -> tuple[FloatArray, FloatArray]:  # fmt: skip
+    """What the sensors report: the force with white noise of ``noise_fraction`` x
+    ``level_N`` and a 12-bit ADC over +-2x the level, the position on encoder steps."""
+    noisy = force_N + rng.normal(0.0, noise_fraction * level_N, force_N.size)
+    adc_step = level_N / 4000
+    return (
+        np.round(noisy / adc_step) * adc_step,
+        np.round(position_m / position_resolution_m) * position_resolution_m,
     )
-    return GeneratedTrace(trace, effect, "friction")
 
 
-def scaled_table_trace(
-    table: GmsParams, level: float, presliding: float, seed: int, scale: float = 0.5
-) -> Trace:
-    """A friction trace of ``table`` with its level and presliding length scaled, over the
-    identification profile, with 1 % noise and 0.1 um position steps: a machine whose
-    guides match the catalogue table up to the three factors a calibration must find."""
-    from gms_comp.diagnosis.baseline import scaled  # the diagnosis's own definition of the factors
-
-    t, x, v = identification_profile(1000.0, scale)
-    truth = scaled(table, level, presliding)
-    force = simulate(truth, x, v)[0]
-    noise = 0.01 * float(np.sum(truth.limit_N))
-    force = force + np.random.default_rng(seed).normal(0.0, noise, force.size)
-    return Trace(source="scaled table", time_s=t, position_m=np.round(x, 7), force_N=force)
+def scaled_gms(params: GmsParams, level: float, presliding: float) -> GmsParams:
+    """``params`` with every limit W_i times ``level`` and every break-away W_i / k_i
+    times ``presliding``: a machine whose guides match a table up to these factors."""
+    k = params.stiffness_N_per_m * (level / presliding)
+    return GmsParams(
+        k, params.limit_N * level, params.slip_level, params.transition_velocity_m_s,
+        params.transition_exponent, params.attraction_rate_per_s, params.viscous_Ns_per_m,
+    )  # fmt: skip

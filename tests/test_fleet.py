@@ -9,13 +9,13 @@ from typing import Any
 import pytest
 
 from gms_comp.cli import main
+from gms_comp.commands.demo_trace import generate, scaled_table_trace
 from gms_comp.config import load_ball_config
-from gms_comp.fleet import FleetJob, diagnose_fleet, recurring_effects
+from gms_comp.fleet import FleetJob, diagnose_fleet, recurring_effects, report_names
 from gms_comp.reduction import reduce_to_gms
 from gms_comp.scaleout import dask_client
 from gms_comp.table import write_table
 from gms_comp.traces import write_trace
-from sim.tracegen import generate, scaled_table_trace
 
 HIDDEN = [("offset", 1), ("offset", 2), ("none", 3)]
 
@@ -85,12 +85,20 @@ def test_diagnose_command_takes_many_traces(
     fleet: tuple[list[FleetJob], list[Any]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     paths = [job.trace for job in fleet[0]]
-    out = tmp_path / "fleet.json"
-    code = main(["diagnose", *paths[2:], "--serial", "--json", str(out)])
+    code = main(["diagnose", *paths[2:], "--serial", "--json"])
     assert code == 1  # one trace failed: the run says so, the others are reported
-    summary = json.loads(out.read_text())
+    summary = json.loads(capsys.readouterr().out)
     assert [r["status"] for r in summary["traces"]] == ["ok", "error"]
-    assert "broken.csv" in capsys.readouterr().out
+    assert summary["traces"][1]["trace"].endswith("broken.csv")
+
+
+def test_report_folder_names_are_unique_and_contained() -> None:
+    traces = ["a/run.csv", "b/run.csv", "...csv", "../../etc/x.csv", ".hidden.csv", "B/RUN.csv"]
+    names = report_names(traces)
+    assert len(set(n.lower() for n in names)) == len(names)  # also on a case-blind disk
+    for name in names:
+        assert name and "/" not in name and "\\" not in name and not name.startswith(".")
+        assert Path(name).name == name and ".." not in name
 
 
 def test_single_trace_options_are_refused_for_a_fleet(
@@ -112,8 +120,7 @@ def test_fleet_calibrates_one_catalogue_table_per_trace(
     like, unlike = tmp_path / "like.csv", tmp_path / "unlike.csv"
     write_trace(like, scaled_table_trace(table.params, 1.3, 0.7, seed=4))
     write_trace(unlike, generate("none", 10).trace)
-    out = tmp_path / "fleet.json"
     args = ["diagnose", str(like), str(unlike), "--table-in", str(table_path), "--serial"]
-    assert main([*args, "--json", str(out)]) == 0
-    rows = json.loads(out.read_text())["traces"]
+    assert main([*args, "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["traces"]
     assert [r["baseline_source"] for r in rows] == ["table", "free_nnls"]

@@ -1,135 +1,280 @@
-"""The GMS part of the diagnosis baseline: a free NNLS GMS, or a calibrated GMS table.
+"""Stage 2: the baseline model, calibrated on the training rows.
 
-Either way the baseline's GMS force is linear in a few non-negative coefficients (so the
-catalogue effects are fitted as extra columns of one design):
-
-- :class:`FreeBasis`: one column per element of a log grid of break-away displacements,
-  the coefficients are the limits W_i (the spec's free NNLS GMS).
-- :class:`TableBasis`: one column, the force of a GMS table (from the ball model of the
-  user's bearing) with its presliding scale and velocity dependence calibrated on the
-  training samples (:func:`calibrate_table`); the coefficient is the level factor on
-  every W_i. Its parameters mean something to the user: how far the bearing's friction
-  is from the model's, in level, presliding length and slip level.
+The blind baseline is a free NNLS GMS that carries the seed's velocity dependence: a
+sliding level C_v >= 1 above the stick level, reached over a transition velocity v_t
+(../shared/spec/physics.md), fitted jointly with the element limits: for each (C_v, v_t)
+the limits are a non-negative least-squares fit, and (C_v, v_t) are searched on a
+bounded grid and refined by a bounded number of coordinate steps. A trace whose only
+departure from a GMS is C_v is therefore explained by the baseline (``none``), not
+handed to a catalogue effect. Given a GMS table (from the user's bearing), its level,
+presliding scale and velocity dependence are calibrated instead (:mod:`.basis`), and the
+table is the baseline if its held-out RMS is within ``table_margin`` of the free GMS's.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
-from collections.abc import Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
-from scipy import optimize
 
-from ..gms import GmsParams, simulate
-from . import fit
-from .motion import BoolArray, FloatArray, Kinematics
+from .. import effects as fx
+from ..gms import GmsParams
+from .basis import (
+    FreeBasis,
+    Samples,
+    TableBasis,
+    breakaway_grid,
+    calibrate_table,
+    presliding_length,
+)
+from .config import DiagnosisConfig
+from .design import Columns, FloatArray, GramDesign, PartDesign, rms, train_rms
+from .prepare import Part, Prepared
 
-# Bounds of the calibrated factors: presliding scale (on every W_i / k_i), slip level
-# C_v, and the transition velocity (at most the trace's top speed).
-PRESLIDING_BOUNDS = (1e-2, 1e2)
-SLIP_LEVEL_BOUNDS = (0.2, 5.0)
-MIN_TRANSITION_VELOCITY_M_S = 1e-9
+Basis = FreeBasis | TableBasis
+
+# The slip level's search: C_v on this grid (1 first: no velocity dependence), v_t
+# on a log grid, then at most REFINE_ROUNDS rounds of coordinate steps inside the
+# bounds. The seed's transition from stick to full slip happens well below the sliding
+# speeds of an identification trace: v_t is at most a tenth of the top speed (the
+# level is then within 2 % of C_v at a fifth of it), so that the slip level cannot stand
+# in for a viscous law over the trace's speeds.
+SLIP_LEVELS = (1.15, 1.4, 1.9)
+SLIP_LEVEL_RANGE = (1.0, 3.0)
+MIN_TRANSITION_M_S = 1e-7
+TRANSITION_FRACTIONS = (1 / 5000, 1 / 10)
+TRANSITION_POINTS = 4
+REFINE_ROUNDS = 8
+REFINE_STEPS = ((0.1, 2.0), (0.05, 1.4), (0.02, 1.15))  # C_v +-, v_t x/ (shrinking)
 
 
 @dataclass(frozen=True)
-class FreeBasis:
-    """Elements on a fixed grid of break-away displacements; coefficients: their limits."""
+class FittedPart:
+    """One part with the baseline's columns and its path quantities."""
 
-    breakaway_m: FloatArray
-
-    def columns(self, kin: Kinematics) -> FloatArray:
-        return fit.element_basis(kin, self.breakaway_m)
-
-    def gms(self, coefficients: FloatArray) -> GmsParams:
-        return fit.gms_from_limits(self.breakaway_m, coefficients)
+    part: Part
+    phi: FloatArray  # the GMS columns of the basis
+    base: Columns  # phi (+ acceleration for a drive force)
+    ctx: fx.Context  # path quantities, the GMS force the baseline's
 
 
 @dataclass(frozen=True)
-class TableBasis:
-    """A calibrated table GMS; its one coefficient scales every limit W_i (and k_i, so
-    the break-away displacements stay)."""
+class Baseline:
+    """The output of :func:`fit_baseline`."""
 
-    params: GmsParams
-    presliding_factor: float
-    slip_level_factor: float
+    prepared: Prepared
+    basis: Basis
+    parts: tuple[FittedPart, ...]
+    theta: FloatArray
+    info: dict[str, Any]
+    gms: GmsParams
+    predictions: tuple[FloatArray, ...]
+    heldout_rms_N: float
+    presliding_m: float
+    sliding_force_N: float
 
     @property
-    def breakaway_m(self) -> FloatArray:
-        return np.asarray(self.params.limit_N / self.params.stiffness_N_per_m)
+    def n_gms(self) -> int:
+        """How many of the coefficients are the GMS's."""
+        return self.parts[0].phi.shape[1]
 
-    def columns(self, kin: Kinematics) -> FloatArray:
-        return simulate(self.params, kin.position_m, kin.velocity_m_s)[0][:, None]
-
-    def gms(self, coefficients: FloatArray) -> GmsParams:
-        return scaled(self.params, float(coefficients[0]), 1.0)
-
-
-@dataclass(frozen=True)
-class Samples:
-    """Where a basis is calibrated: one trace's kinematics, force and training mask."""
-
-    kin: Kinematics
-    force_N: FloatArray
-    train: BoolArray
-
-
-def scaled(params: GmsParams, level: float, presliding: float, **scalars: float) -> GmsParams:
-    """``params`` with every W_i times ``level`` and every break-away W_i / k_i times
-    ``presliding`` (and any scalar field replaced). A zero level keeps k_i > 0."""
-    w = params.limit_N * level
-    k = params.stiffness_N_per_m * (max(level, 1e-300) / presliding)
-    return dataclasses.replace(params, stiffness_N_per_m=k, limit_N=w, **scalars)
+    def to_json(self) -> dict[str, Any]:
+        """The calibrated baseline's parameters for the diagnosis JSON."""
+        return {
+            "model": "free_nnls_gms" if isinstance(self.basis, FreeBasis) else "table_gms",
+            **self.info,
+            "force_kind": self.prepared.force_kind,
+            "breakaway_m": self.basis.breakaway_m.tolist(),
+            "limit_N": self.gms.limit_N.tolist(),
+            "slip_level": self.gms.slip_level,
+            "transition_velocity_m_s": self.gms.transition_velocity_m_s,
+            "sliding_force_N": self.sliding_force_N,
+            "presliding_m": self.presliding_m,
+            "mass_kg": float(self.theta[self.n_gms]) if self.prepared.drive else 0.0,
+        }
 
 
-def calibrate_table(table: GmsParams, samples: Sequence[Samples], drive: bool) -> TableBasis:
-    """The presliding scale, slip level and transition velocity of ``table`` that fit the
-    training samples best, by bounded least squares; the level (and the mass for a drive
-    force) is solved linearly inside every evaluation, each a batch :func:`simulate` run."""
-    vmax = max(float(np.max(np.abs(s.kin.velocity_m_s))) for s in samples)
-    vt_hi = max(vmax, 2 * MIN_TRANSITION_VELOCITY_M_S)
+def _designs(
+    prepared: Prepared, basis: Basis, viscous: bool = False
+) -> list[tuple[FloatArray, Columns]]:
+    out = []
+    for p in prepared.parts:
+        phi = basis.columns(p.kin)
+        cols = [phi, p.kin.acceleration_m_s2[:, None]] if prepared.drive else [phi]
+        if viscous:
+            cols.append(p.kin.velocity_m_s[:, None])
+        values = np.column_stack(cols)
+        out.append((phi, Columns(values, np.zeros(values.shape[1]))))
+    return out
 
-    def candidate(u: FloatArray) -> GmsParams:
-        return scaled(
-            table, 1.0, math.exp(u[0]), slip_level=float(u[1]),
-            transition_velocity_m_s=math.exp(u[2]),
-        )  # fmt: skip
 
-    def residual(u: FloatArray) -> FloatArray:
-        params = candidate(u)
-        cols = [_columns(params, s, drive) for s in samples]
-        a = np.concatenate(cols)
-        y = np.concatenate([s.force_N[s.train] for s in samples])
-        return y - a @ fit.solve(a, y, np.zeros(a.shape[1]))
-
-    lower = [
-        math.log(PRESLIDING_BOUNDS[0]),
-        SLIP_LEVEL_BOUNDS[0],
-        math.log(MIN_TRANSITION_VELOCITY_M_S),
+def _fit(
+    prepared: Prepared, basis: Basis, viscous: bool = False
+) -> tuple[list[PartDesign], FloatArray, float]:
+    designs = [
+        PartDesign(cols, p.force_N, p.train, p.held)
+        for p, (_, cols) in zip(prepared.parts, _designs(prepared, basis, viscous), strict=True)
     ]
-    upper = [math.log(PRESLIDING_BOUNDS[1]), SLIP_LEVEL_BOUNDS[1], math.log(vt_hi)]
-    start = np.clip([0.0, table.slip_level, math.log(table.transition_velocity_m_s)], lower, upper)
-    # the slip level has little effect where the transition velocity is far above the
-    # speeds of the trace: finite differences of a few per cent see it anyway
-    res = optimize.least_squares(residual, start, bounds=(lower, upper), diff_step=1e-2)
-    best = candidate(res.x)
-    return TableBasis(best, math.exp(res.x[0]), best.slip_level / table.slip_level)
+    gram = GramDesign(designs)
+    theta = gram.fit()
+    return designs, theta, train_rms(designs, theta)
 
 
-def _columns(params: GmsParams, s: Samples, drive: bool) -> FloatArray:
-    force = simulate(params, s.kin.position_m, s.kin.velocity_m_s)[0]
-    cols = [force, s.kin.acceleration_m_s2] if drive else [force]
-    return np.column_stack(cols)[s.train]
+def fit_free(prepared: Prepared, breakaway_m: FloatArray) -> FreeBasis:
+    """The free basis whose slip level and transition velocity fit the training rows
+    best, each trial's limits by non-negative least squares (bounded search).
+
+    A viscous term (c >= 0) is fitted beside them during the search and then dropped:
+    the slip level takes the velocity dependence that saturates, a linear one is left
+    to the catalogue's ``viscous`` (else C_v stands in for part of it)."""
+    vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in prepared.parts)
+    vt_range = _transition_range(vmax)
+    cache: dict[tuple[float, float], float] = {}
+
+    def cost(cv: float, vt: float) -> float:
+        key = (round(cv, 6), round(vt, 12))
+        if key not in cache:
+            cache[key] = _fit(prepared, FreeBasis(breakaway_m, cv, vt), viscous=True)[2]
+        return cache[key]
+
+    best = (cost(1.0, vt_range[1]), 1.0, vt_range[1])
+    for cv in SLIP_LEVELS:
+        for vt in np.geomspace(*vt_range, TRANSITION_POINTS):
+            best = min(best, (cost(cv, float(vt)), cv, float(vt)))
+    rounds = 0
+    for d_cv, f_vt in REFINE_STEPS if best[1] > 1.0 else ():
+        while rounds < REFINE_ROUNDS:
+            rounds += 1
+            start = best
+            for cv, vt in _neighbours(best[1], best[2], d_cv, f_vt, vt_range):
+                best = min(best, (cost(cv, vt), cv, vt))
+            if best == start:
+                break
+    return FreeBasis(breakaway_m, best[1], best[2])
 
 
-def presliding_length(params: GmsParams) -> float:
-    """Displacement by which the virgin curve reaches 90 % of its level: the break-away
-    W_i / k_i by which 90 % of the limits have been reached."""
-    breakaway = params.limit_N / params.stiffness_N_per_m
-    order = np.argsort(breakaway)
-    total = float(np.sum(params.limit_N))
-    if total <= 0:
-        return float(np.max(breakaway))
-    reach = np.cumsum(params.limit_N[order]) / total
-    return float(breakaway[order][np.searchsorted(reach, 0.9)])
+def _transition_range(vmax: float) -> tuple[float, float]:
+    hi = max(vmax * TRANSITION_FRACTIONS[1], 10 * MIN_TRANSITION_M_S)
+    return max(vmax * TRANSITION_FRACTIONS[0], MIN_TRANSITION_M_S), hi
+
+
+def _neighbours(
+    cv: float, vt: float, d_cv: float, f_vt: float, vt_range: tuple[float, float]
+) -> list[tuple[float, float]]:
+    """One coordinate step either way from (C_v, v_t), inside the bounds."""
+    lo, hi = SLIP_LEVEL_RANGE
+    return [(min(max(cv + d, lo), hi), vt) for d in (-d_cv, d_cv)] + [
+        (cv, min(max(vt * f, vt_range[0]), vt_range[1])) for f in (1 / f_vt, f_vt)
+    ]
+
+
+def fit_baseline(prepared: Prepared, cfg: DiagnosisConfig, table: GmsParams | None) -> Baseline:
+    """The free GMS with its slip level, or the calibrated ``table`` if its held-out RMS
+    is within ``cfg.table_margin`` (relative) of the free GMS's; ``info`` holds both RMS
+    values and the table's calibrated factors."""
+    grid = breakaway_grid(prepared.main.kin, cfg.n_elements, prepared.position_resolution_m)
+    free = fit_free(prepared, grid)
+    designs, theta, _ = _fit(prepared, free)
+    free_rms = rms(GramDesign(designs).held_residual(theta))
+    info: dict[str, Any] = {"source": "free_nnls", "free_nnls_heldout_rms_N": free_rms}
+    basis: Basis = free
+    if table is not None:
+        samples = [Samples(p.kin, p.force_N, p.train) for p in prepared.parts]
+        calibrated = calibrate_table(table, samples, prepared.drive)
+        t_designs, t_theta, _ = _fit(prepared, calibrated)
+        table_rms = rms(GramDesign(t_designs).held_residual(t_theta))
+        info.update(
+            table_heldout_rms_N=table_rms,
+            level_factor=float(t_theta[0]),
+            presliding_factor=calibrated.presliding_factor,
+            slip_level_factor=calibrated.slip_level_factor,
+            transition_velocity_m_s=calibrated.params.transition_velocity_m_s,
+        )
+        if table_rms <= (1.0 + cfg.table_margin) * free_rms:
+            basis, theta, info["source"] = calibrated, t_theta, "table"
+    return _baseline(prepared, basis, theta, info)
+
+
+def _baseline(
+    prepared: Prepared, basis: Basis, theta: FloatArray, info: dict[str, Any]
+) -> Baseline:
+    designs = _designs(prepared, basis)
+    n_gms = designs[0][0].shape[1]
+    gms = basis.gms(theta[:n_gms])
+    parts = []
+    for p, (phi, cols) in zip(prepared.parts, designs, strict=True):
+        ctx = fx.Context.along(
+            p.kin.time_s, p.kin.position_m, p.kin.velocity_m_s, p.kin.acceleration_m_s2,
+            phi @ theta[:n_gms], prepared.standstill_speed_m_s, prepared.reversal_deadband_m,
+        )  # fmt: skip
+        parts.append(FittedPart(p, phi, cols, ctx))
+    predictions = tuple(fp.base.values @ theta for fp in parts)
+    held = np.concatenate(
+        [
+            fp.part.force_N[fp.part.held] - y[fp.part.held]
+            for fp, y in zip(parts, predictions, strict=False)
+        ]
+    )
+    return Baseline(
+        prepared=prepared,
+        basis=basis,
+        parts=tuple(parts),
+        theta=theta,
+        info=info,
+        gms=gms,
+        predictions=predictions,
+        heldout_rms_N=rms(held),
+        presliding_m=presliding_length(gms),
+        sliding_force_N=float(np.sum(gms.limit_N)) * gms.slip_level,
+    )
+
+
+def refit_gms_force(parts: tuple[FittedPart, ...], theta: FloatArray) -> tuple[FittedPart, ...]:
+    """The parts with their path context's GMS force from the coefficients ``theta``."""
+    n = parts[0].phi.shape[1]
+    return tuple(
+        dataclasses.replace(fp, ctx=dataclasses.replace(fp.ctx, gms_force_N=fp.phi @ theta[:n]))
+        for fp in parts
+    )
+
+
+def rebased(baseline: Baseline, basis: Basis) -> tuple[FittedPart, ...]:
+    """The baseline's parts on another basis (the same path quantities; the GMS force
+    that basis fits alone)."""
+    designs = _designs(baseline.prepared, basis)
+    parts = tuple(
+        dataclasses.replace(fp, phi=phi, base=cols)
+        for fp, (phi, cols) in zip(baseline.parts, designs, strict=True)
+    )
+    gram = GramDesign(
+        [PartDesign(fp.base, fp.part.force_N, fp.part.train, fp.part.held) for fp in parts]
+    )
+    return refit_gms_force(parts, gram.fit())
+
+
+def refine_slip_level(
+    baseline: Baseline, cost: Callable[[tuple[FittedPart, ...]], float]
+) -> FreeBasis | None:
+    """The free basis's slip level and transition velocity searched again with ``cost``
+    (the training RMS with the kept effects present): bounded coordinate steps from the
+    baseline's, or None for a table baseline."""
+    basis = baseline.basis
+    if not isinstance(basis, FreeBasis):
+        return None
+    vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in baseline.prepared.parts)
+    vt_range = _transition_range(vmax)
+    best = (cost(baseline.parts), basis.slip_level, basis.transition_velocity_m_s)
+    rounds = 0
+    for d_cv, f_vt in REFINE_STEPS[1:]:  # from near the blind baseline's optimum
+        while rounds < REFINE_ROUNDS:
+            rounds += 1
+            start = best
+            for cv, vt in _neighbours(best[1], best[2], d_cv, f_vt, vt_range):
+                trial = FreeBasis(basis.breakaway_m, cv, vt)
+                best = min(best, (cost(rebased(baseline, trial)), cv, vt))
+            if best == start:
+                break
+    return FreeBasis(basis.breakaway_m, best[1], best[2])

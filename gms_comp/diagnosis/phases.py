@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import effects as fx
-from .fit import rms
+from .design import rms
 from .motion import BoolArray, FloatArray
 
 # |a| above this fraction of the trace's peak acceleration counts as an acceleration phase.

@@ -20,9 +20,9 @@ from sim.link import DirectLink, FeedforwardLink
 from sim.scenarios import Physics, Scenario, build_reference, load_scenario, run_strategies, score
 
 from .. import effects as fx
+from ..diagnosis.run import Diagnosis
 from ..gms import GmsParams, GmsStream, simulate
 from ..table import Extension, Fidelity, GmsTable
-from .run import Diagnosis
 
 FloatArray = fx.FloatArray
 

@@ -1,0 +1,144 @@
+"""Least-squares machinery of the diagnosis: design columns, bounded solves, Gram scoring.
+
+Every model the diagnosis compares is linear in its coefficients once its shape
+parameters are fixed: the GMS limits W_i (on a grid of break-away displacements), the
+mass for a drive force, and the catalogue effects' coefficients are columns of one
+design. Candidates are scored without refactorising the whole design for every trial:
+:class:`GramDesign` keeps the training Gram matrix of the current design, and a trial's
+extra columns only add their cross products (n x m x q operations for q new columns
+instead of n x (m + q)^2), then a bounded solve in m + q unknowns.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import linalg, optimize
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+# Ridge (relative to the unit diagonal of the scaled Gram matrix) that keeps an empty or
+# duplicated column from making the solve singular; its coefficient then stays near 0.
+RIDGE = 1e-10
+
+
+def rms(x: FloatArray) -> float:
+    """Root mean square (0 for an empty array)."""
+    return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
+
+
+@dataclass(frozen=True)
+class Columns:
+    """Design columns of one model part with the lower bounds of their coefficients."""
+
+    values: FloatArray  # (n, k)
+    lower: FloatArray  # (k,)
+
+    def __add__(self, other: Columns) -> Columns:
+        return Columns(
+            np.column_stack([self.values, other.values]), np.concatenate([self.lower, other.lower])
+        )
+
+
+def solve(a: FloatArray, y: FloatArray, lower: FloatArray) -> FloatArray:
+    """min ||a c - y|| with c >= lower (use -inf for free coefficients)."""
+    return solve_gram(a.T @ a, a.T @ y, lower)
+
+
+def solve_gram(gram: FloatArray, rhs: FloatArray, lower: FloatArray) -> FloatArray:
+    """min c'Gc - 2 c'g with c >= lower, from the Gram matrix G and g = A'y.
+
+    Columns are scaled to unit norm first (the bounds with them), so that element
+    columns of very different sizes share one tolerance."""
+    d = np.sqrt(np.maximum(np.diag(gram), 0.0))
+    scale = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0)
+    g = gram * np.outer(scale, scale) + RIDGE * np.eye(scale.size)
+    r = linalg.cholesky(g, lower=False, check_finite=False)
+    z = linalg.solve_triangular(r, rhs * scale, trans="T", check_finite=False)
+    low = np.where(np.isneginf(lower), -np.inf, lower / scale)
+    if np.all(np.isneginf(low)):
+        c = linalg.solve_triangular(r, z, check_finite=False)
+    else:
+        res = optimize.lsq_linear(r, z, bounds=(low, np.full_like(low, np.inf)), method="bvls")
+        c = res.x
+    return np.asarray(c * scale, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class PartDesign:
+    """One trace's design and force with its training and held-out rows."""
+
+    columns: Columns
+    force_N: FloatArray
+    train: BoolArray
+    held: BoolArray
+
+
+class GramDesign:
+    """The training Gram matrix of a design over several parts, for fast trials.
+
+    Parameters
+    ----------
+    parts
+        The design of each part (same columns in each), its force and masks.
+    """
+
+    def __init__(self, parts: Sequence[PartDesign]) -> None:
+        self.parts = tuple(parts)
+        self.lower = self.parts[0].columns.lower
+        self._train_rows = [np.flatnonzero(p.train) for p in self.parts]
+        self._held_rows = [np.flatnonzero(p.held) for p in self.parts]
+        self._train_a = [p.columns.values[p.train] for p in self.parts]
+        self._train_y = [p.force_N[p.train] for p in self.parts]
+        self.gram = sum(
+            (a.T @ a for a in self._train_a), np.zeros((self.lower.size, self.lower.size))
+        )
+        self.rhs = sum(
+            (a.T @ y for a, y in zip(self._train_a, self._train_y, strict=True)),
+            np.zeros(self.lower.size),
+        )
+        self._held_a = [p.columns.values[p.held] for p in self.parts]
+        self._held_y = np.concatenate([p.force_N[p.held] for p in self.parts])
+
+    def fit(self) -> FloatArray:
+        """Coefficients of the design fitted on the training rows."""
+        return solve_gram(self.gram, self.rhs, self.lower)
+
+    def held_residual(self, theta: FloatArray) -> FloatArray:
+        """Held-out residual of the design with coefficients ``theta``."""
+        return self._held_y - np.concatenate([a @ theta for a in self._held_a])
+
+    def trial(self, extra: Sequence[Columns]) -> tuple[FloatArray, FloatArray]:
+        """Coefficients and held-out residual of this design plus ``extra`` (one
+        :class:`Columns` per part), fitted on the training rows."""
+        m, q = self.lower.size, extra[0].lower.size
+        cross = np.zeros((m, q))
+        inner = np.zeros((q, q))
+        rhs = np.zeros(q)
+        for rows, a, y, e in zip(
+            self._train_rows, self._train_a, self._train_y, extra, strict=True
+        ):
+            b = np.take(e.values, rows, axis=0)
+            cross += a.T @ b
+            inner += b.T @ b
+            rhs += b.T @ y
+        gram = np.block([[self.gram, cross], [cross.T, inner]])
+        theta = solve_gram(
+            gram, np.concatenate([self.rhs, rhs]), np.concatenate([self.lower, extra[0].lower])
+        )
+        pred = [
+            a @ theta[:m] + np.take(e.values, rows, axis=0) @ theta[m:]
+            for a, rows, e in zip(self._held_a, self._held_rows, extra, strict=True)
+        ]
+        return theta, self._held_y - np.concatenate(pred)
+
+
+def train_rms(parts: Sequence[PartDesign], theta: FloatArray) -> float:
+    """Training RMS of the parts' design with coefficients ``theta``."""
+    return rms(
+        np.concatenate([p.force_N[p.train] - p.columns.values[p.train] @ theta for p in parts])
+    )
