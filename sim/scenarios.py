@@ -41,7 +41,7 @@ from .closed_loop import RunResult, run
 from .controller import CascadeController, ControllerConfig, design
 from .link import DirectLink, FeedforwardLink
 from .plant import Friction, LinearMotorAxis, PlantConfig, ScaledFriction
-from .strategies import STRATEGIES, baseline_model, calibrate
+from .strategies import REGISTRY, STRATEGIES, Calibration, StrategyInputs, calibrate
 from .trajectories import FloatArray, Reference, circle, reversals, sine, step_stop, stops
 
 MAX_DURATION_S = 600.0
@@ -157,17 +157,17 @@ class Physics:
 
 def build_observer(s: Scenario, name: str, physics: Physics) -> FrictionObserver | None:
     """The compensator of strategy ``name`` (None for ``none``)."""
-    if name == "none":
-        return None
     comp = s.compensator
-    source: GmsTable | ForceModel
-    if name == "gms":
-        source = physics.table(s)
-    else:
+
+    def calibration() -> Calibration:
         c = s.scenario
         v1, v2 = c.calibration_velocities_m_s
-        cal = calibrate(physics.truth(s.ball), c.calibration_travel_m, (v1, v2))
-        source = baseline_model(name, cal, comp.coulomb_velocity_band_m_s)
+        return calibrate(physics.truth(s.ball), c.calibration_travel_m, (v1, v2))
+
+    inputs = StrategyInputs(calibration, lambda: physics.table(s), comp.coulomb_velocity_band_m_s)
+    source: GmsTable | ForceModel | None = REGISTRY[name].source(inputs)
+    if source is None:
+        return None
     level = s.plant.ball_set_count * comp.friction_level_scale
     return FrictionObserver(
         source, s.plant.force_constant_N_per_A, s.controller.servo_period_s, level, comp
@@ -214,14 +214,18 @@ def run_strategies(
     strategies: Iterable[str] = STRATEGIES,
     physics: Physics | None = None,
     link: Callable[[int], FeedforwardLink] = DirectLink,
+    progress: Callable[[str], None] | None = None,
 ) -> dict[str, RunResult]:
-    """Run the scenario once per strategy; ``link(delay_cycles)`` makes each link."""
+    """Run the scenario once per strategy; ``link(delay_cycles)`` makes each link;
+    ``progress(name)`` is told before each run."""
     physics = physics or Physics()
     loop = Loop.build(s, physics)
     results = {}
     for name in strategies:
         if name not in STRATEGIES:
             raise ScenarioError(f"unknown strategy {name!r} (known: {', '.join(STRATEGIES)})")
+        if progress is not None:
+            progress(name)
         observer = build_observer(s, name, physics)
         results[name] = loop.run(observer, link(s.scenario.transport_delay_cycles))
     return results
