@@ -253,18 +253,28 @@ def _plot_circularity(runs: list[dict[str, RunResult]], s: Scenario, path: Path)
     fig, ax = plt.subplots(figsize=(6, 6), subplot_kw={"projection": "polar"})
     assert isinstance(ax, PolarAxes)
     span_nm = 0.0
+    labels = {"none": "no compensation", "gms": "GMS feedforward"}
     for name, rx in x.items():
         ry = y[name]
         angle = np.arctan2(ry.reference.position_m - radius_m, rx.reference.position_m)
         radial_nm = radial_error(rx, ry, radius_m) * 1e9
         span_nm = max(span_nm, float(np.max(np.abs(radial_nm))))
-        ax.plot(angle, radial_nm, label=name, lw=0.9)
+        ax.plot(
+            angle, radial_nm, label=labels.get(name, f"{name} feedforward"),
+            lw=1.6 if name == "gms" else 0.9, zorder=3 if name == "gms" else 2,
+        )  # fmt: skip
     # Zero error is drawn as a circle of radius 2 span, the errors (+-span) around it:
     # nanometres magnified to a visible fraction of the circle.
+    ax.plot(np.linspace(0, 2 * np.pi, 361), np.zeros(361), "k--", lw=0.8, label="commanded")
     ax.set_rorigin(-2 * span_nm)
     ax.set_rlim(-span_nm, span_nm)
-    ax.set_title(f"radial error [nm] on a {radius_m * 1e3:g} mm circle (zero: the circle)")
-    ax.legend(loc="lower left", fontsize=8)
+    ax.set_rlabel_position(22.5)
+    ax.set_title(
+        f"circularity, {radius_m * 1e3:g} mm circle at {s.scenario.feed_m_s * 60:g} m/min\n"
+        "radial error [nm], magnified about the commanded circle (dashed)",
+        fontsize=10,
+    )
+    ax.legend(loc="lower left", fontsize=8, bbox_to_anchor=(-0.1, -0.1))
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=120)
