@@ -263,26 +263,29 @@ def _plot(
 
     t = record.time_s - record.time_s[0]
     gain = record.loop.drive_gain_N
-    fig, (ax_q, ax_f) = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    fig, (ax_q, ax_d, ax_f) = plt.subplots(3, 1, figsize=(11, 9), sharex=True)
     sims = [("reference model", reference_run, "tab:purple")]
     if model_name != "reference":
         sims.append((f"{model_name} model", model_run, "tab:cyan"))
     for label, r, colour in sims:
         ax_q.plot(t, (record.reference_m - r.position_m) * 1e6, color=colour, lw=0.8, label=label)
+        ax_d.plot(t, (record.position_m - r.position_m) * 1e6, color=colour, lw=0.8, label=label)
         ax_f.plot(t, gain * r.command, color=colour, lw=0.8, label=label)
     ax_q.plot(t, (record.reference_m - record.position_m) * 1e6, "k", lw=0.7, label="measured")
     ax_f.plot(t, record.force_N, "k", lw=0.7, label="measured")
-    for ax in (ax_q, ax_f):
+    for ax in (ax_q, ax_d, ax_f):
         for name, mask in masks.items():
             ax.fill_between(
                 t, 0, 1, where=mask, transform=ax.get_xaxis_transform(),
-                color=PHASE_COLOURS[name], alpha=0.12, lw=0, label=PHASE_LABELS[name],
+                color=PHASE_COLOURS[name], alpha=0.15, lw=0, label=PHASE_LABELS[name],
             )  # fmt: skip
-    ax_q.set_ylabel("position error qg - q [µm]")
-    ax_q.set_title(f"{Path(record.source).name}: measured and replayed position error")
+    ax_q.set_ylabel("qg - q [µm]")
+    ax_q.set_title(f"{Path(record.source).name}: following error, measured and replayed")
+    ax_d.set_ylabel("q measured - q simulated [µm]")
+    ax_d.set_title("replay's position error (output error)")
     ax_f.set_ylabel("drive force [N]")
     ax_f.set_xlabel("time [s]")
-    ax_f.set_title("drive force (drive gain x command)")
+    ax_f.set_title("drive force (drive gain x command), measured and replayed")
     ax_q.legend(loc="upper right", fontsize=7, ncol=4)
     fig.tight_layout()
     with atomic_path(path) as tmp:
