@@ -186,6 +186,12 @@ class Loop:
     @classmethod
     def build(cls, s: Scenario, physics: Physics) -> Loop:
         """Reference, truth (scaled to the guide) and controller of ``s``."""
+        if s.controller.structure != "cascade":
+            raise ScenarioError(
+                f"{s.path}: controller.structure = {s.controller.structure!r} is the replay's "
+                "drive-command loop (gms-comp replay); the simulated linear-motor axis runs "
+                'the cascade (structure = "cascade")'
+            )
         truth = ScaledFriction(physics.truth(s.ball), s.plant.ball_set_count)
         controller = CascadeController(
             design(s.plant, s.controller),

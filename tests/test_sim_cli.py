@@ -93,6 +93,8 @@ def test_output_paths_are_checked_before_running(
         ("[controller]\nvelocity_bandwidth_Hz = 3000.0\n", "controller.velocity_bandwidth_Hz"),
         ("[plant]\nmass_kg = 30\n", "plant.mass_kg"),
         ("[compensator]\nfeed = 'future'\n", "compensator.feed"),
+        ('[controller]\nstructure = "position_velocity"\n', "gms-comp replay"),
+        ("[controller]\nvelocity_fir = [0.7, 0.7]\n", "controller.velocity_fir"),
     ],
 )
 def test_bad_scenarios_are_refused_in_one_line(
