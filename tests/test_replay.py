@@ -22,6 +22,7 @@ from gms_comp.cli import main
 from gms_comp.effects import Context, apply_extensions, effect_from_dict
 from gms_comp.gms import GmsParams, simulate
 from gms_comp.table import Extension, Fidelity, GmsTable
+from gms_comp.traces import Trace, write_trace
 from gms_comp.validation import InputError
 from sim.link import DirectLink
 from sim.position_loop import PositionLoop, RigidAxisModel, friction_along, simulate_loop
@@ -189,3 +190,33 @@ def test_compensation_on_the_replayed_axis(tmp_path: Path) -> None:
     none_run = runs["none"][0]
     share = ideal.position_m - none_run.position_m
     assert scores["none"]["rms_friction_error_m"] == pytest.approx(np.sqrt(np.mean(share**2)))
+
+
+def test_replay_of_its_own_run_is_exact(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # A CSV record made by the loop itself, its gains given in [controller], replays to
+    # (almost) zero error with the same model: the round trip through file and config.
+    loop = PositionLoop(1e-3, 100.0, 50.0, 20.0, 10.0)
+    model = replay.reference_model(
+        {"M_kg": 20.0, "Fv_Ns_per_m": 30.0, "Fc_N": 5.0, "offset_N": 0.5}
+    )
+    t = np.arange(3000) * 1e-3
+    qg = 0.005 * (1 - np.cos(2 * np.pi * t / 1.5))
+    made = simulate_loop(loop, model, qg)
+    write_trace(
+        tmp_path / "run.csv",
+        Trace("run", t, made.position_m, loop.drive_gain_N * made.command, reference_position_m=qg),
+    )
+    config = tmp_path / "loop.toml"
+    config.write_text(
+        "[controller]\nstructure = 'position_velocity'\nservo_rate_Hz = 1000.0\n"
+        "velocity_filter_Hz = 100.0\nkp_per_s = 100.0\nkv_command_s_per_m = 50.0\n"
+        "drive_gain_N_per_command = 20.0\n"
+    )
+    record = replay.load_record(
+        tmp_path / "run.csv",
+        replay.parse_controller(config),
+        time_base="data",
+    )
+    scores = replay.replay_scores(record, replay.replay(record, model))
+    assert scores["position_error_max_m"] < 1e-9
+    assert scores["relative_error_pct"]["force"] < 1e-4

@@ -19,13 +19,11 @@ from typing import Any
 
 import numpy as np
 
-from sim.controller import ControllerConfig
 from sim.link import DirectLink, FeedforwardLink
 from sim.position_loop import LoopRun
 
 from .. import replay as rp
 from ..atomic import atomic_path
-from ..config import parse_section, read_toml
 from ..validation import input_file, output_file
 
 # The benchmark paper's simulation errors (§3.5) and the re-statement's q error RMS.
@@ -107,8 +105,7 @@ def run(args: argparse.Namespace) -> int:
     """Replay, score, compensate, report."""
     controller = None
     if args.config:
-        controller = parse_section(read_toml(args.config), args.config, "controller",
-                                   ControllerConfig)  # fmt: skip
+        controller = rp.parse_controller(args.config)
     record = rp.load_record(args.trace, controller, args.time_base)
     choice = rp.load_model(args.model, args.reversal_deadband)
     print(f"replaying {Path(args.trace).name} with the {choice.name} model ...", file=sys.stderr)
