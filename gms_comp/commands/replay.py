@@ -129,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
         },
     }
     published = PUBLISHED.get(Path(args.trace).name)
-    if published:
+    if published and args.time_base == "simulink":  # the paper's time base
         doc["published_reference"] = published
     comp = None
     if choice.table is not None:
