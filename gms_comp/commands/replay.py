@@ -309,10 +309,16 @@ def _plot_compensation(
     fig, (ax_all, ax_zoom) = plt.subplots(1, 2, figsize=(12, 4.5))
     first = int(turns[0]) if turns.size else 0
     zoom = slice(max(0, first - 50), first + 200)
+    labels = {
+        "none": "no feedforward",
+        "reference": "reference model (Coulomb + viscous)",
+        "gms": "GMS observer",
+    }
     for name, (r, _) in comp.items():
-        ax_all.plot(t, (record.reference_m - r.position_m) * 1e6, lw=0.7, label=name)
+        label = labels.get(name, name)
+        ax_all.plot(t, (record.reference_m - r.position_m) * 1e6, lw=0.7, label=label)
         share_um = (ideal.position_m - r.position_m)[zoom] * 1e6
-        ax_zoom.plot((t[zoom] - t[first]) * 1e3, share_um, lw=1.0, label=name)
+        ax_zoom.plot((t[zoom] - t[first]) * 1e3, share_um, lw=1.0, label=label)
     ax_all.set_xlabel("time [s]")
     ax_all.set_ylabel("following error [µm]")
     ax_all.set_title("following error with each feedforward")
@@ -321,6 +327,7 @@ def _plot_compensation(
     ax_zoom.set_ylabel("friction share of the following error [µm]")
     ax_zoom.set_title("friction's share at the first reversal")
     ax_all.legend(fontsize=8)
+    ax_zoom.legend(fontsize=8)
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110)
