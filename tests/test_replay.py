@@ -220,3 +220,15 @@ def test_replay_of_its_own_run_is_exact(tmp_path: Path, capsys: pytest.CaptureFi
     scores = replay.replay_scores(record, replay.replay(record, model))
     assert scores["position_error_max_m"] < 1e-9
     assert scores["relative_error_pct"]["force"] < 1e-4
+
+
+@needs_emps
+def test_replay_refuses_a_file_that_is_no_model(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert EMPS is not None
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"format": "something else"}')
+    assert main(["replay", str(EMPS / "DATA_EMPS.mat"), "--model", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "neither a GMS table nor a diagnose JSON" in err
