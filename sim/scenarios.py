@@ -40,7 +40,8 @@ from gms_comp.transient import BallSetFriction
 from .closed_loop import RunResult, run
 from .controller import CascadeController, ControllerConfig, design
 from .link import DirectLink, FeedforwardLink
-from .plant import Friction, LinearMotorAxis, PlantConfig, ScaledFriction
+from .plant import Friction, LinearMotorAxis, PlantConfig, ScaledFriction, compiled_truth
+from .position_loop import PositionLoop, RigidAxisModel, simulate_loop
 from .strategies import REGISTRY, STRATEGIES, Calibration, StrategyInputs, calibrate
 from .trajectories import FloatArray, Reference, circle, reversals, sine, step_stop, stops
 
@@ -186,12 +187,6 @@ class Loop:
     @classmethod
     def build(cls, s: Scenario, physics: Physics) -> Loop:
         """Reference, truth (scaled to the guide) and controller of ``s``."""
-        if s.controller.structure != "cascade":
-            raise ScenarioError(
-                f"{s.path}: controller.structure = {s.controller.structure!r} is the replay's "
-                "drive-command loop (gms-comp replay); the simulated linear-motor axis runs "
-                'the cascade (structure = "cascade")'
-            )
         truth = ScaledFriction(physics.truth(s.ball), s.plant.ball_set_count)
         controller = CascadeController(
             design(s.plant, s.controller),
@@ -204,6 +199,8 @@ class Loop:
     def run(self, observer: FrictionObserver | None, link: FeedforwardLink) -> RunResult:
         """One run from rest with ``observer`` (None: no compensation) behind ``link``."""
         comp = self.scenario.compensator
+        if self.scenario.controller.structure == "position_velocity":
+            return self._run_drive_loop(observer, link)
         return run(
             self.reference,
             self.axis,
@@ -213,6 +210,44 @@ class Loop:
             comp.feed,
             comp.look_ahead_cycles,
         )
+
+    def _run_drive_loop(
+        self, observer: FrictionObserver | None, link: FeedforwardLink
+    ) -> RunResult:
+        """The drive-command loop of :mod:`sim.position_loop` (the EMPS benchmark's, the
+        replay's kernel) on a rigid axis of the plant's mass with this scenario's truth.
+
+        The compensator is fed with the reference, so its output is computed first; its
+        current becomes drive command units through ``k_f / drive gain``. The run's
+        ``current_command_A`` holds the drive command.
+        """
+        s = self.scenario
+        comp = s.compensator
+        if observer is not None and (comp.feed != "reference" or comp.adaptation_rate_per_s):
+            raise ScenarioError(
+                f"{s.path}: the position_velocity loop takes a reference-fed compensator "
+                "without adaptation (compensator.feed, compensator.adaptation_rate_per_s)"
+            )
+        ref = self.reference
+        n = ref.cycles
+        feedforward_A = np.zeros(n)
+        if observer is not None:
+            observer.reset()
+        for k in range(n):
+            wanted = 0.0
+            if observer is not None:
+                j = min(k + comp.look_ahead_cycles, n - 1)
+                wanted = observer.step(float(ref.position_m[j]), float(ref.velocity_m_s[j]))
+            feedforward_A[k] = link.transfer(k, wanted)
+        friction = self.axis.friction
+        friction.reset()
+        loop = PositionLoop.from_config(s.controller, substeps=s.plant.substeps)
+        to_command = s.plant.force_constant_N_per_A / loop.drive_gain_N
+        r = simulate_loop(
+            loop, RigidAxisModel(s.plant.moving_mass_kg), ref.position_m,
+            feedforward_A * to_command, truth=compiled_truth(friction),
+        )  # fmt: skip
+        return RunResult(ref, r.position_m, feedforward_A, r.command, r.friction_N)
 
 
 def run_strategies(
