@@ -18,7 +18,14 @@ from pathlib import Path
 
 from gms_comp import replay
 
-DEFAULT_TRACE = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps" / "DATA_EMPS.mat"
+DEFAULT_TRACE = next(
+    (
+        p / "shared" / "data" / "emps" / "DATA_EMPS.mat"
+        for p in Path(__file__).resolve().parents
+        if (p / "shared" / "data" / "emps").is_dir()
+    ),
+    Path("../shared/data/emps/DATA_EMPS.mat"),
+)
 
 
 def main() -> None:

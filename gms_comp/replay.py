@@ -33,6 +33,7 @@ from sim.link import FeedforwardLink
 from sim.position_loop import LoopRun, PositionLoop, RigidAxisModel, simulate_loop
 from sim.strategies import CoulombViscous
 
+from .config import parse_section, read_toml
 from .errors import GmsCompError
 from .gms import GmsParams
 from .observer import CompensatorConfig, FrictionObserver
@@ -125,6 +126,11 @@ def load_record(
         str(path), t, np.asarray(trace.position_m, float), np.asarray(trace.force_N, float),
         reference, loop, disturbance,
     )  # fmt: skip
+
+
+def parse_controller(path: str | Path) -> ControllerConfig:
+    """The ``[controller]`` section of a config file."""
+    return parse_section(read_toml(path), path, "controller", ControllerConfig)
 
 
 def _mat_variables(path: Path) -> dict[str, FloatArray]:

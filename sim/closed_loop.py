@@ -9,6 +9,7 @@ position at the same instant (the tool sees the true position).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -16,7 +17,6 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from gms_comp.gms import GmsStream
 from gms_comp.observer import (
     ForceModel,
     FrictionObserver,
@@ -25,15 +25,15 @@ from gms_comp.observer import (
 )
 
 from .controller import MEASURED_VELOCITY, CascadeController, controller_step
-from .kernels import ZERO, Pack, gms_model_pack, model_force, model_pack
 from .link import DirectLink, FeedforwardLink, delayed_hold
 from .plant import LinearMotorAxis, axis_cycle
-from .strategies import CoulombViscous, LuGre
+from .strategies import CompiledModel, CoulombViscous, compiled_form
 from .trajectories import Reference
 
 FloatArray = NDArray[np.float64]
 Signals = tuple[Any, ...]
-_NO_MODEL = model_pack(ZERO, np.zeros(1))
+# Placeholder for a run without a compensator (never stepped).
+_NO_MODEL = CoulombViscous(0.0, 0.0, 1.0).compiled()
 
 
 @dataclass(frozen=True)
@@ -52,14 +52,10 @@ class RunResult:
         return self.reference.position_m - self.position_m
 
 
-def compiled_model(model: ForceModel) -> Pack | None:
-    """The :mod:`sim.kernels` pack of a feedforward model, None if it has none
-    (a table with physical extensions, any other Python model)."""
-    if isinstance(model, CoulombViscous | LuGre):
-        return model.pack
-    if isinstance(model, GmsStream):
-        return gms_model_pack(model)
-    return None
+def compiled_model(model: ForceModel) -> CompiledModel | None:
+    """The compiled step of a feedforward model, None if it has none (a table with
+    physical extensions, any other Python model)."""
+    return compiled_form(model)
 
 
 @numba.njit(cache=True)
@@ -113,7 +109,8 @@ def _actuate(
 @numba.njit(cache=True)
 def _run_compiled(
     ref: Signals,
-    model: Pack,
+    step: Signals,
+    model: Signals,
     has_observer: bool,
     obs: Signals,
     look_ahead: int,
@@ -126,13 +123,16 @@ def _run_compiled(
     out: Signals,
     measured: float,
 ) -> None:  # pragma: no cover
-    """The whole run with a compiled model and the direct link."""
+    """The whole run with a compiled model (``step[0]`` on ``model = (params, state,
+    gms)``, a strategy's first-class compiled step) and the direct link."""
     buffer, delay, hold = link
+    params, state, g = model
+    model_step = step[0]
     for k in range(ref[0].size):
         wanted = 0.0
         if has_observer:
             x, v = _observer_input(k, ref, look_ahead, feed_measured, measured, ctrl)
-            force = model_force(model, x, v)
+            force = model_step(params, state, g, x, v)
             wanted = _feedforward(k, force, obs, ref, axis, inertial_gain)
         ff = delayed_hold(buffer, delay, hold, k, wanted)
         measured = _actuate(k, ff, measured, ref, lead, ctrl, axis, out)
@@ -170,10 +170,13 @@ def run(
     measured = axis.measure()
     if isinstance(link, DirectLink) and model is not None:
         compiled_link = (link.buffer, link.delay_cycles, link.hold_cycles)
-        _run_compiled(
-            ref, model, observer is not None, obs, look_ahead_cycles, feed_measured,
-            inertial_gain, compiled_link, ctrl, lead, plant, out, measured,
-        )  # fmt: skip
+        with warnings.catch_warnings():  # first-class functions are "experimental" in numba
+            warnings.simplefilter("ignore", numba.NumbaExperimentalFeatureWarning)
+            _run_compiled(
+                ref, (model.step,), (model.params, model.state, model.gms), observer is not None,
+                obs, look_ahead_cycles, feed_measured, inertial_gain, compiled_link, ctrl, lead,
+                plant, out, measured,
+            )  # fmt: skip
     else:
         for k in range(n):
             wanted = 0.0

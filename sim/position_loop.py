@@ -35,6 +35,7 @@ from gms_comp import gms as gms_kernel
 from gms_comp.gms import GmsParams, GmsStream
 
 from .controller import ControllerConfig
+from .kernels import Pack, truth_force, zero_truth
 
 FloatArray = NDArray[np.float64]
 
@@ -222,10 +223,13 @@ def _reversal_step(
 
 
 @numba.njit(cache=True)
-def _held(p: FloatArray, g: Any, path: FloatArray, q: float, v: float) -> tuple[float, float]:
-    """The parts with memory, stepped once per sub-step: GMS force, reversal transient."""
+def _held(
+    p: FloatArray, g: Any, truth: Pack, path: FloatArray, q: float, v: float
+) -> tuple[float, float]:
+    """The parts with memory, stepped once per sub-step: GMS force, reversal transient
+    plus a friction truth (:mod:`sim.kernels`, e.g. the ball model)."""
     gms_force = gms_kernel.stream_step(g, q, v) if p[_HAS_GMS] != 0.0 else 0.0
-    transient = 0.0
+    transient = truth_force(truth, q, v)
     if p[_REV_AMP] != 0.0:
         d = _reversal_step(path, q, v, p[_REV_DEADBAND])
         transient = p[_REV_AMP] * d * math.exp(-(path[2] - path[6]) / p[_REV_LEN])
@@ -239,11 +243,11 @@ def _accel(p: FloatArray, q: float, v: float, force: float, gms_f: float, extra:
 
 @numba.njit(cache=True)
 def _friction_along(
-    plant: FloatArray, g: Any, q: FloatArray, v: FloatArray, out: FloatArray
+    plant: FloatArray, g: Any, truth: Pack, q: FloatArray, v: FloatArray, out: FloatArray
 ) -> None:  # pragma: no cover
     path = np.zeros(7)
     for i in range(q.size):
-        gms_f, extra = _held(plant, g, path, q[i], v[i])
+        gms_f, extra = _held(plant, g, truth, path, q[i], v[i])
         out[i] = _memoryless(plant, q[i], v[i], gms_f) + extra
 
 
@@ -254,7 +258,7 @@ def friction_along(
     sample, from the virgin state: the force the plant feels, open loop."""
     out = np.zeros(len(position_m))
     _friction_along(
-        model.params(), model.gms_kernel(), np.ascontiguousarray(position_m, float),
+        model.params(), model.gms_kernel(), zero_truth(), np.ascontiguousarray(position_m, float),
         np.ascontiguousarray(velocity_m_s, float), out,
     )  # fmt: skip
     return out
@@ -265,6 +269,7 @@ def run_position_loop(
     loop: FloatArray,
     plant: FloatArray,
     g: Any,
+    truth: Pack,
     reference_m: FloatArray,
     feedforward: FloatArray,
     disturbance_t: FloatArray,
@@ -313,7 +318,7 @@ def run_position_loop(
         out[5, k] = _memoryless(plant, q, v, gms_f) + extra
         for j in range(nsub):
             ts = t0 + j * h
-            gms_f, extra = _held(plant, g, path, q, v)
+            gms_f, extra = _held(plant, g, truth, path, q, v)
             c1 = gain * (held + _interp(ts, disturbance_t, disturbance, cursor))
             c2 = gain * (held + _interp(ts + 0.5 * h, disturbance_t, disturbance, cursor))
             c3 = gain * (held + _interp(ts + h, disturbance_t, disturbance, cursor))
@@ -355,6 +360,7 @@ def simulate_loop(
     reference_m: FloatArray,
     feedforward: FloatArray | None = None,
     disturbance: tuple[FloatArray, FloatArray] | None = None,
+    truth: Pack | None = None,
 ) -> LoopRun:
     """Run ``reference_m`` (one sample per cycle) once from rest.
 
@@ -371,6 +377,9 @@ def simulate_loop(
     disturbance
         ``(time_s, value)``: a piecewise-linear signal in command units added after the
         saturation (default none), sampled at the integrator's stages.
+    truth
+        A friction truth's pack (:func:`sim.plant.compiled_truth`) added to the model's
+        friction, stepped once per sub-step (default none).
     """
     n = reference_m.size
     ff = np.zeros(n) if feedforward is None else np.ascontiguousarray(feedforward, float)
@@ -378,7 +387,7 @@ def simulate_loop(
     out = np.zeros((6, n))
     run_position_loop(
         loop.params(), model.params(), model.gms_kernel(),
-        np.ascontiguousarray(reference_m, float), ff,
+        zero_truth() if truth is None else truth, np.ascontiguousarray(reference_m, float), ff,
         np.ascontiguousarray(dist_t, float), np.ascontiguousarray(dist, float), out,
     )  # fmt: skip
     return LoopRun(np.arange(n, dtype=np.float64) * loop.period_s, *out)

@@ -40,8 +40,9 @@ from gms_comp.transient import BallSetFriction
 from .closed_loop import RunResult, run
 from .controller import CascadeController, ControllerConfig, design
 from .link import DirectLink, FeedforwardLink
-from .plant import Friction, LinearMotorAxis, PlantConfig, ScaledFriction
-from .strategies import STRATEGIES, baseline_model, calibrate
+from .plant import Friction, LinearMotorAxis, PlantConfig, ScaledFriction, compiled_truth
+from .position_loop import PositionLoop, RigidAxisModel, simulate_loop
+from .strategies import REGISTRY, STRATEGIES, Calibration, StrategyInputs, calibrate
 from .trajectories import FloatArray, Reference, circle, reversals, sine, step_stop, stops
 
 MAX_DURATION_S = 600.0
@@ -157,17 +158,17 @@ class Physics:
 
 def build_observer(s: Scenario, name: str, physics: Physics) -> FrictionObserver | None:
     """The compensator of strategy ``name`` (None for ``none``)."""
-    if name == "none":
-        return None
     comp = s.compensator
-    source: GmsTable | ForceModel
-    if name == "gms":
-        source = physics.table(s)
-    else:
+
+    def calibration() -> Calibration:
         c = s.scenario
         v1, v2 = c.calibration_velocities_m_s
-        cal = calibrate(physics.truth(s.ball), c.calibration_travel_m, (v1, v2))
-        source = baseline_model(name, cal, comp.coulomb_velocity_band_m_s)
+        return calibrate(physics.truth(s.ball), c.calibration_travel_m, (v1, v2))
+
+    inputs = StrategyInputs(calibration, lambda: physics.table(s), comp.coulomb_velocity_band_m_s)
+    source: GmsTable | ForceModel | None = REGISTRY[name].source(inputs)
+    if source is None:
+        return None
     level = s.plant.ball_set_count * comp.friction_level_scale
     return FrictionObserver(
         source, s.plant.force_constant_N_per_A, s.controller.servo_period_s, level, comp
@@ -198,6 +199,8 @@ class Loop:
     def run(self, observer: FrictionObserver | None, link: FeedforwardLink) -> RunResult:
         """One run from rest with ``observer`` (None: no compensation) behind ``link``."""
         comp = self.scenario.compensator
+        if self.scenario.controller.structure == "position_velocity":
+            return self._run_drive_loop(observer, link)
         return run(
             self.reference,
             self.axis,
@@ -208,20 +211,62 @@ class Loop:
             comp.look_ahead_cycles,
         )
 
+    def _run_drive_loop(
+        self, observer: FrictionObserver | None, link: FeedforwardLink
+    ) -> RunResult:
+        """The drive-command loop of :mod:`sim.position_loop` (the EMPS benchmark's, the
+        replay's kernel) on a rigid axis of the plant's mass with this scenario's truth.
+
+        The compensator is fed with the reference, so its output is computed first; its
+        current becomes drive command units through ``k_f / drive gain``. The run's
+        ``current_command_A`` holds the drive command.
+        """
+        s = self.scenario
+        comp = s.compensator
+        if observer is not None and (comp.feed != "reference" or comp.adaptation_rate_per_s):
+            raise ScenarioError(
+                f"{s.path}: the position_velocity loop takes a reference-fed compensator "
+                "without adaptation (compensator.feed, compensator.adaptation_rate_per_s)"
+            )
+        ref = self.reference
+        n = ref.cycles
+        feedforward_A = np.zeros(n)
+        if observer is not None:
+            observer.reset()
+        for k in range(n):
+            wanted = 0.0
+            if observer is not None:
+                j = min(k + comp.look_ahead_cycles, n - 1)
+                wanted = observer.step(float(ref.position_m[j]), float(ref.velocity_m_s[j]))
+            feedforward_A[k] = link.transfer(k, wanted)
+        friction = self.axis.friction
+        friction.reset()
+        loop = PositionLoop.from_config(s.controller, substeps=s.plant.substeps)
+        to_command = s.plant.force_constant_N_per_A / loop.drive_gain_N
+        r = simulate_loop(
+            loop, RigidAxisModel(s.plant.moving_mass_kg), ref.position_m,
+            feedforward_A * to_command, truth=compiled_truth(friction),
+        )  # fmt: skip
+        return RunResult(ref, r.position_m, feedforward_A, r.command, r.friction_N)
+
 
 def run_strategies(
     s: Scenario,
     strategies: Iterable[str] = STRATEGIES,
     physics: Physics | None = None,
     link: Callable[[int], FeedforwardLink] = DirectLink,
+    progress: Callable[[str], None] | None = None,
 ) -> dict[str, RunResult]:
-    """Run the scenario once per strategy; ``link(delay_cycles)`` makes each link."""
+    """Run the scenario once per strategy; ``link(delay_cycles)`` makes each link;
+    ``progress(name)`` is told before each run."""
     physics = physics or Physics()
     loop = Loop.build(s, physics)
     results = {}
     for name in strategies:
         if name not in STRATEGIES:
             raise ScenarioError(f"unknown strategy {name!r} (known: {', '.join(STRATEGIES)})")
+        if progress is not None:
+            progress(name)
         observer = build_observer(s, name, physics)
         results[name] = loop.run(observer, link(s.scenario.transport_delay_cycles))
     return results

@@ -8,14 +8,24 @@ significant digits.
 
 from __future__ import annotations
 
+import contextlib
+import json
 import math
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from gms_comp import replay
-from sim.position_loop import PositionLoop, RigidAxisModel, simulate_loop
+from gms_comp.cli import main
+from gms_comp.effects import Context, apply_extensions, effect_from_dict
+from gms_comp.gms import GmsParams, simulate
+from gms_comp.table import Extension, Fidelity, GmsTable
+from gms_comp.traces import Trace, write_trace
+from gms_comp.validation import InputError
+from sim.link import DirectLink
+from sim.position_loop import PositionLoop, RigidAxisModel, friction_along, simulate_loop
 
 
 def _emps_folder() -> Path | None:
@@ -83,3 +93,142 @@ def test_disturbance_after_saturation_acts_like_a_force() -> None:
     )
     offset = simulate_loop(loop, RigidAxisModel(5.0, offset_N=-3.0), np.zeros(3000))
     np.testing.assert_allclose(pushed.position_m, offset.position_m, atol=1e-12)
+
+
+def _extended_table() -> GmsTable:
+    """A table with every extension the rigid axis simulates (EMPS-like numbers)."""
+    params = GmsParams(np.array([6e5, 2e4, 4e3]), np.array([19.0, 1.5, 0.9]))
+    extensions = (
+        Extension("viscous", {"c_Ns_per_m": 190.0}),
+        Extension("direction_asymmetry", {"c_diff_Ns_per_m": -80.0}),
+        Extension("reversal_transient", {"amplitude_N": 20.0, "length_m": 4e-5}),
+        Extension(
+            "position_ripple", {"amplitude_N": 0.9, "wavelength_m": 2.5e-3, "phase_rad": 0.3}
+        ),
+        Extension("stribeck", {"ratio": 0.7, "v_s_m_per_s": 0.02}),
+        Extension("offset", {"offset_N": -3.0}),
+        Extension("inertia", {"mass_kg": 95.0}),
+        Extension("drive_lag", {"lag_s": 7e-4}),
+    )
+    return GmsTable(params, "test", "0" * 64, Fidelity(0.0, 0.0), extensions=extensions)
+
+
+def test_plant_friction_is_the_runtime_effects_of_the_table() -> None:
+    # The compiled plant and the catalogue's batch effects on the GMS force must agree
+    # along any motion (here two strokes with reversals, at 1 kHz).
+    table = _extended_table()
+    model = replay.table_axis_model(table, 1.0, "test", reversal_deadband_m=0.0)
+    t = np.arange(4000) * 1e-3
+    q = 0.01 * (1 - np.cos(2 * np.pi * t / 2.0))
+    v = np.gradient(q, 1e-3)
+    gms_force = simulate(table.params, q, v)[0]
+    physical = [
+        e
+        for e in (
+            effect_from_dict({"effect": x.effect, "parameters": x.parameters})
+            for x in table.extensions
+        )
+        if not e.measurement_only
+    ]
+    expected = apply_extensions(physical, Context.along(t, q, v, np.gradient(v, 1e-3), gms_force))
+    np.testing.assert_allclose(friction_along(model, q, v), expected, atol=1e-9)
+    assert model.mass_kg == 95.0 and model.drive_lag_s == 0.0  # lag: measurement chain
+
+
+def test_table_with_an_unsimulated_effect_is_refused() -> None:
+    table = GmsTable(
+        GmsParams(np.array([1e5]), np.array([10.0])), "test", "0" * 64, Fidelity(0.0, 0.0),
+        extensions=(Extension("drift", {"kappa": 0.1, "tau_s": 10.0}),),
+    )  # fmt: skip
+    with pytest.raises(InputError, match="drift"):
+        replay.table_axis_model(table, 1.0, "t.json")
+
+
+def test_lagged_drive_settles_to_the_same_steady_error() -> None:
+    # A first-order lag in the drive changes the transient, not the statics.
+    loop = PositionLoop(1e-3, 50.0, 20.0, 10.0, 100.0)
+    lagged = simulate_loop(
+        loop, RigidAxisModel(5.0, offset_N=3.0, drive_lag_s=2e-3), np.zeros(4000)
+    )
+    assert lagged.position_m[-1] == pytest.approx(-3.0 / (10.0 * 20.0 * 50.0), rel=1e-6)
+    assert lagged.axis_force_N[-1] == pytest.approx(3.0, rel=1e-6)
+
+
+@needs_emps
+def test_replay_cli_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert EMPS is not None
+    plot = tmp_path / "replay.png"
+    code = main(["replay", str(EMPS / "DATA_EMPS.mat"), "--json", "--plot", str(plot)])
+    captured = capsys.readouterr()
+    doc = json.loads(captured.out)
+    assert code == 0 and plot.stat().st_size > 0
+    assert set(doc["relative_error_pct"]) == {"position", "velocity", "acceleration", "force"}
+    assert doc["relative_error_pct"] == doc["reference"]["relative_error_pct"]  # default model
+    assert doc["position_error_rms_m"] == pytest.approx(20.5e-6, abs=0.05e-6)
+    assert set(doc["phases"]["model"]) >= {"reversal", "standstill", "constant_speed_pos"}
+    assert f"wrote {plot}" in captured.err
+
+
+@needs_emps
+def test_compensation_on_the_replayed_axis(tmp_path: Path) -> None:
+    # With the table as the plant's friction and the table as feedforward, the friction's
+    # share of the following error shrinks below the uncompensated axis's.
+    assert EMPS is not None
+    record = replay.load_record(EMPS / "DATA_EMPS.mat")
+    table = _extended_table()
+    plant = replay.table_axis_model(table, 1.0, "test")
+
+    @contextlib.contextmanager
+    def direct() -> Iterator[DirectLink]:
+        yield DirectLink()
+
+    ideal, runs = replay.compensation(record, plant, table, direct)
+    scores = {name: s for name, (_, s) in runs.items()}
+    assert set(scores) == {"none", "reference", "gms"}
+    assert scores["gms"]["rms_friction_error_m"] < 0.2 * scores["none"]["rms_friction_error_m"]
+    # the share is the frictionless axis's position minus this one's
+    none_run = runs["none"][0]
+    share = ideal.position_m - none_run.position_m
+    assert scores["none"]["rms_friction_error_m"] == pytest.approx(np.sqrt(np.mean(share**2)))
+
+
+def test_replay_of_its_own_run_is_exact(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # A CSV record made by the loop itself, its gains given in [controller], replays to
+    # (almost) zero error with the same model: the round trip through file and config.
+    loop = PositionLoop(1e-3, 100.0, 50.0, 20.0, 10.0)
+    model = replay.reference_model(
+        {"M_kg": 20.0, "Fv_Ns_per_m": 30.0, "Fc_N": 5.0, "offset_N": 0.5}
+    )
+    t = np.arange(3000) * 1e-3
+    qg = 0.005 * (1 - np.cos(2 * np.pi * t / 1.5))
+    made = simulate_loop(loop, model, qg)
+    write_trace(
+        tmp_path / "run.csv",
+        Trace("run", t, made.position_m, loop.drive_gain_N * made.command, reference_position_m=qg),
+    )
+    config = tmp_path / "loop.toml"
+    config.write_text(
+        "[controller]\nstructure = 'position_velocity'\nservo_rate_Hz = 1000.0\n"
+        "velocity_filter_Hz = 100.0\nkp_per_s = 100.0\nkv_command_s_per_m = 50.0\n"
+        "drive_gain_N_per_command = 20.0\n"
+    )
+    record = replay.load_record(
+        tmp_path / "run.csv",
+        replay.parse_controller(config),
+        time_base="data",
+    )
+    scores = replay.replay_scores(record, replay.replay(record, model))
+    assert scores["position_error_max_m"] < 1e-9
+    assert scores["relative_error_pct"]["force"] < 1e-4
+
+
+@needs_emps
+def test_replay_refuses_a_file_that_is_no_model(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert EMPS is not None
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"format": "something else"}')
+    assert main(["replay", str(EMPS / "DATA_EMPS.mat"), "--model", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "neither a GMS table nor a diagnose JSON" in err

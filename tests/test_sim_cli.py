@@ -27,7 +27,7 @@ def test_simulate_writes_scores_for_every_strategy(tmp_path: Path) -> None:
     out = tmp_path / "scores.json"
     plot = tmp_path / "reversal.png"
     code = main(
-        ["simulate", str(_config(tmp_path, SHORT)), "--json", str(out), "--plot", str(plot)]
+        ["simulate", str(_config(tmp_path, SHORT)), "--output", str(out), "--plot", str(plot)]
     )
     assert code == 0
     report = json.loads(out.read_text())
@@ -45,7 +45,7 @@ def test_two_axis_circle_scores_the_contour(tmp_path: Path) -> None:
     out = tmp_path / "scores.json"
     plot = tmp_path / "reversal.png"
     config = _config(tmp_path, SHORT + 'circle_axis = "xy"\n')
-    assert main(["simulate", str(config), "--json", str(out), "--plot", str(plot)]) == 0
+    assert main(["simulate", str(config), "-o", str(out), "--plot", str(plot)]) == 0
     report = json.loads(out.read_text())
     assert report["scenario"]["axes"] == 2
     for scores in report["strategies"].values():
@@ -53,6 +53,45 @@ def test_two_axis_circle_scores_the_contour(tmp_path: Path) -> None:
         assert set(circ) == {"peak_quadrant_error_m", "rms_radial_error_m"}
         assert all(v > 0 for v in circ.values())
     assert (tmp_path / "reversal_circularity.png").stat().st_size > 0
+
+
+def test_drive_command_loop_runs_the_same_scenario(tmp_path: Path) -> None:
+    # [controller] structure = "position_velocity": the replay's loop (sim.position_loop)
+    # on the same truth and strategies. Without velocity feedforward its following error is
+    # the loop's lag (tens of um), so the feedforward trims the reversal peak, no more.
+    out = tmp_path / "scores.json"
+    config = _config(tmp_path, SHORT + '[controller]\nstructure = "position_velocity"\n')
+    assert main(["simulate", str(config), "-o", str(out)]) == 0
+    peaks = {
+        k: v["peak_reversal_error_m"] for k, v in json.loads(out.read_text())["strategies"].items()
+    }
+    assert peaks["gms"] < 0.9 * peaks["none"]
+
+
+def test_json_flag_prints_only_json_and_says_what_was_simulated(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = _config(tmp_path, SHORT)
+    assert main(["simulate", str(config), "--json"]) == 0
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)  # stdout is the JSON and nothing else
+    assert "simulating gms" in captured.err  # progress on stderr
+    assert main(["simulate", str(config)]) == 0
+    summary = capsys.readouterr().out
+    duration = report["scenario"]["duration_s"]
+    assert f"4 strategies x {duration:.3g} s = {4 * duration:.3g} s of axis time" in summary
+    factor = summary.split("(")[-1].split("x real time")[0]
+    assert float(factor) > 0  # never "0x"
+
+
+def test_output_paths_are_checked_before_running(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    missing = tmp_path / "no-such-folder" / "scores.json"
+    with pytest.raises(SystemExit) as exit_info:
+        main(["simulate", "-o", str(missing)])
+    assert exit_info.value.code == 2
+    assert "does not exist" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(
@@ -67,6 +106,7 @@ def test_two_axis_circle_scores_the_contour(tmp_path: Path) -> None:
         ("[controller]\nvelocity_bandwidth_Hz = 3000.0\n", "controller.velocity_bandwidth_Hz"),
         ("[plant]\nmass_kg = 30\n", "plant.mass_kg"),
         ("[compensator]\nfeed = 'future'\n", "compensator.feed"),
+        ("[controller]\nvelocity_fir = [0.7, 0.7]\n", "controller.velocity_fir"),
     ],
 )
 def test_bad_scenarios_are_refused_in_one_line(

@@ -81,7 +81,7 @@ def test_simulate_via_can_from_the_cli(tmp_path: Path) -> None:
         default_config_path().read_text() + "[scenario]\nrevolutions = 0.3\ndwell_s = 0.05\n"
     )
     out = tmp_path / "scores.json"
-    assert main(["simulate", str(config), "--via-can", "--json", str(out)]) == 0
+    assert main(["simulate", str(config), "--via-can", "-o", str(out)]) == 0
     report = json.loads(out.read_text())
     assert report["scenario"]["via_can"] is True
     peaks = {k: v["peak_reversal_error_m"] for k, v in report["strategies"].items()}

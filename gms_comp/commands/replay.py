@@ -19,13 +19,11 @@ from typing import Any
 
 import numpy as np
 
-from sim.controller import ControllerConfig
 from sim.link import DirectLink, FeedforwardLink
 from sim.position_loop import LoopRun
 
 from .. import replay as rp
 from ..atomic import atomic_path
-from ..config import parse_section, read_toml
 from ..validation import input_file, output_file
 
 # The benchmark paper's simulation errors (§3.5) and the re-statement's q error RMS.
@@ -107,8 +105,7 @@ def run(args: argparse.Namespace) -> int:
     """Replay, score, compensate, report."""
     controller = None
     if args.config:
-        controller = parse_section(read_toml(args.config), args.config, "controller",
-                                   ControllerConfig)  # fmt: skip
+        controller = rp.parse_controller(args.config)
     record = rp.load_record(args.trace, controller, args.time_base)
     choice = rp.load_model(args.model, args.reversal_deadband)
     print(f"replaying {Path(args.trace).name} with the {choice.name} model ...", file=sys.stderr)
@@ -132,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
         },
     }
     published = PUBLISHED.get(Path(args.trace).name)
-    if published:
+    if published and args.time_base == "simulink":  # the paper's time base
         doc["published_reference"] = published
     comp = None
     if choice.table is not None:
@@ -263,26 +260,29 @@ def _plot(
 
     t = record.time_s - record.time_s[0]
     gain = record.loop.drive_gain_N
-    fig, (ax_q, ax_f) = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    fig, (ax_q, ax_d, ax_f) = plt.subplots(3, 1, figsize=(11, 9), sharex=True)
     sims = [("reference model", reference_run, "tab:purple")]
     if model_name != "reference":
         sims.append((f"{model_name} model", model_run, "tab:cyan"))
     for label, r, colour in sims:
         ax_q.plot(t, (record.reference_m - r.position_m) * 1e6, color=colour, lw=0.8, label=label)
+        ax_d.plot(t, (record.position_m - r.position_m) * 1e6, color=colour, lw=0.8, label=label)
         ax_f.plot(t, gain * r.command, color=colour, lw=0.8, label=label)
     ax_q.plot(t, (record.reference_m - record.position_m) * 1e6, "k", lw=0.7, label="measured")
     ax_f.plot(t, record.force_N, "k", lw=0.7, label="measured")
-    for ax in (ax_q, ax_f):
+    for ax in (ax_q, ax_d, ax_f):
         for name, mask in masks.items():
             ax.fill_between(
                 t, 0, 1, where=mask, transform=ax.get_xaxis_transform(),
-                color=PHASE_COLOURS[name], alpha=0.12, lw=0, label=PHASE_LABELS[name],
+                color=PHASE_COLOURS[name], alpha=0.15, lw=0, label=PHASE_LABELS[name],
             )  # fmt: skip
-    ax_q.set_ylabel("position error qg - q [µm]")
-    ax_q.set_title(f"{Path(record.source).name}: measured and replayed position error")
+    ax_q.set_ylabel("qg - q [µm]")
+    ax_q.set_title(f"{Path(record.source).name}: following error, measured and replayed")
+    ax_d.set_ylabel("q measured - q simulated [µm]")
+    ax_d.set_title("replay's position error (output error)")
     ax_f.set_ylabel("drive force [N]")
     ax_f.set_xlabel("time [s]")
-    ax_f.set_title("drive force (drive gain x command)")
+    ax_f.set_title("drive force (drive gain x command), measured and replayed")
     ax_q.legend(loc="upper right", fontsize=7, ncol=4)
     fig.tight_layout()
     with atomic_path(path) as tmp:
@@ -309,10 +309,16 @@ def _plot_compensation(
     fig, (ax_all, ax_zoom) = plt.subplots(1, 2, figsize=(12, 4.5))
     first = int(turns[0]) if turns.size else 0
     zoom = slice(max(0, first - 50), first + 200)
+    labels = {
+        "none": "no feedforward",
+        "reference": "reference model (Coulomb + viscous)",
+        "gms": "GMS observer",
+    }
     for name, (r, _) in comp.items():
-        ax_all.plot(t, (record.reference_m - r.position_m) * 1e6, lw=0.7, label=name)
+        label = labels.get(name, name)
+        ax_all.plot(t, (record.reference_m - r.position_m) * 1e6, lw=0.7, label=label)
         share_um = (ideal.position_m - r.position_m)[zoom] * 1e6
-        ax_zoom.plot((t[zoom] - t[first]) * 1e3, share_um, lw=1.0, label=name)
+        ax_zoom.plot((t[zoom] - t[first]) * 1e3, share_um, lw=1.0, label=label)
     ax_all.set_xlabel("time [s]")
     ax_all.set_ylabel("following error [µm]")
     ax_all.set_title("following error with each feedforward")
@@ -321,6 +327,7 @@ def _plot_compensation(
     ax_zoom.set_ylabel("friction share of the following error [µm]")
     ax_zoom.set_title("friction's share at the first reversal")
     ax_all.legend(fontsize=8)
+    ax_zoom.legend(fontsize=8)
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110)

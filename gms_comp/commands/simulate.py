@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -44,7 +45,9 @@ from sim.scenarios import (
 )
 from sim.trajectories import reversals
 
+from ..atomic import atomic_path, write_text
 from ..errors import ScenarioError
+from ..validation import input_file, output_file
 
 
 def register(subparsers: Any) -> None:
@@ -57,10 +60,21 @@ def register(subparsers: Any) -> None:
             "Without CONFIG: the default scenario on the packaged Table 1 physics."
         ),
     )
-    parser.add_argument("config", nargs="?", type=Path, help="config TOML (default: Table 1)")
-    parser.add_argument("--json", type=Path, metavar="OUT", help="write the scores as JSON")
+    parser.add_argument("config", nargs="?", type=input_file, help="config TOML (default: Table 1)")
     parser.add_argument(
-        "--plot", type=Path, metavar="PNG", help="plot the following error around a reversal"
+        "--json", action="store_true", help="print the scores as JSON on stdout (nothing else)"
+    )
+    parser.add_argument(
+        "-o", "--output", type=output_file, metavar="FILE", help="write the scores as JSON"
+    )
+    parser.add_argument(
+        "--plot",
+        type=output_file,
+        metavar="PNG",
+        help=(
+            "plot the following error around a reversal (a two-axis circle also writes "
+            "<stem>_circularity<suffix>, the polar plot of the radial error)"
+        ),
     )
     parser.add_argument(
         "--via-can",
@@ -96,10 +110,26 @@ def _links(s: Scenario, via_can: bool) -> Iterator[Callable[[int], FeedforwardLi
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run every strategy on every axis of the scenario; report and write."""
     s = load_scenario(args.config)
+    axes = axis_scenarios(s)
     started = time.perf_counter()
+
+    def progress(axis: str) -> Callable[[str], None]:
+        def note(name: str) -> None:
+            print(f"simulating {axis}{name} ...", file=sys.stderr, flush=True)
+
+        return note
+
     with _links(s, args.via_can) as link:
-        runs = [run_strategies(axis, link=link) for axis in axis_scenarios(s)]
+        runs = [
+            run_strategies(
+                axis,
+                link=link,
+                progress=progress(f"{axis.scenario.circle_axis} axis, " * (len(axes) > 1)),
+            )
+            for axis in axes
+        ]
     elapsed_s = time.perf_counter() - started
     results = runs[0]
     scores = {name: score(r, s.scenario) for name, r in results.items()}
@@ -107,37 +137,62 @@ def run(args: argparse.Namespace) -> int:
     contour = _contours(runs, s)
     for name, circ in contour.items():
         strategies[name]["circularity"] = circ
+    duration_s = next(iter(results.values())).reference.duration_s
     simulated_s = sum(r.reference.duration_s for axis in runs for r in axis.values())
     report = {
         "config": s.path,
         "scenario": {
             "trajectory": s.scenario.trajectory,
             "axes": len(runs),
-            "duration_s": next(iter(results.values())).reference.duration_s,
+            "duration_s": duration_s,
             "servo_rate_Hz": s.controller.servo_rate_Hz,
             "transport_delay_cycles": s.scenario.transport_delay_cycles,
             "via_can": bool(args.via_can),
         },
         "strategies": strategies,
         "gms_peak_reversal_reduction": _reductions(scores),
+        "simulated_s": simulated_s,
+        "elapsed_s": elapsed_s,
         "realtime_factor": simulated_s / elapsed_s,
     }
-    print(_table(scores))
-    if contour:
-        print(_circularity_table(contour))
-    print(
-        f"simulated {simulated_s:.1f} s in {elapsed_s:.1f} s "
-        f"({report['realtime_factor']:.0f}x real time, set-up included)"
-    )
-    if args.json:
-        args.json.write_text(json.dumps(report, indent=2) + "\n")
+    files: list[Path] = []
+    if args.output:
+        files.append(write_text(args.output, json.dumps(report, indent=2) + "\n"))
     if args.plot:
-        _plot(results, s, args.plot)
+        files.append(_plot(results, s, args.plot))
         if contour:
-            _plot_circularity(
-                runs, s, args.plot.with_name(f"{args.plot.stem}_circularity{args.plot.suffix}")
-            )
+            circ = args.plot.with_name(f"{args.plot.stem}_circularity{args.plot.suffix}")
+            files.append(_plot_circularity(runs, s, circ))
+    if args.json:
+        sys.stdout.write(json.dumps(report, indent=2) + "\n")
+    else:
+        print(_what(report, len(results)))
+        print(_table(scores))
+        if contour:
+            print(_circularity_table(contour))
+    for f in files:
+        print(f"wrote {f}", file=sys.stderr if args.json else sys.stdout)
     return 0
+
+
+def _what(report: dict[str, Any], strategies: int) -> str:
+    """What was simulated, and how fast."""
+    sc = report["scenario"]
+    axes = f" x {sc['axes']} axes" if sc["axes"] > 1 else ""
+    path = "over the virtual CAN bus" if sc["via_can"] else (
+        f"direct path, {sc['transport_delay_cycles']} cycle(s) delay"
+    )  # fmt: skip
+    return (
+        f"simulated {sc['trajectory']} ({sc['duration_s']:.3g} s at {sc['servo_rate_Hz']:g} Hz, "
+        f"{path}): {strategies} strategies{axes} x {sc['duration_s']:.3g} s = "
+        f"{report['simulated_s']:.3g} s of axis time in {report['elapsed_s']:.3g} s "
+        f"({_factor(report['realtime_factor'])} real time, set-up included)"
+    )
+
+
+def _factor(value: float) -> str:
+    """A real-time factor with the digits it needs (never "0x")."""
+    return f"{value:.2g}x" if value < 10 else f"{value:.0f}x"
 
 
 def _contours(runs: list[dict[str, RunResult]], s: Scenario) -> dict[str, dict[str, float | None]]:
@@ -184,7 +239,7 @@ def _circularity_table(contour: dict[str, dict[str, float | None]]) -> str:
     return "\n".join(lines)
 
 
-def _plot_circularity(runs: list[dict[str, RunResult]], s: Scenario, path: Path) -> None:
+def _plot_circularity(runs: list[dict[str, RunResult]], s: Scenario, path: Path) -> Path:
     """The classic circularity plot: radial error against the angle on the circle,
     magnified about a zero-error circle (the polar origin sits below zero)."""
     import matplotlib
@@ -198,24 +253,36 @@ def _plot_circularity(runs: list[dict[str, RunResult]], s: Scenario, path: Path)
     fig, ax = plt.subplots(figsize=(6, 6), subplot_kw={"projection": "polar"})
     assert isinstance(ax, PolarAxes)
     span_nm = 0.0
+    labels = {"none": "no compensation", "gms": "GMS feedforward"}
     for name, rx in x.items():
         ry = y[name]
         angle = np.arctan2(ry.reference.position_m - radius_m, rx.reference.position_m)
         radial_nm = radial_error(rx, ry, radius_m) * 1e9
         span_nm = max(span_nm, float(np.max(np.abs(radial_nm))))
-        ax.plot(angle, radial_nm, label=name, lw=0.9)
+        ax.plot(
+            angle, radial_nm, label=labels.get(name, f"{name} feedforward"),
+            lw=1.6 if name == "gms" else 0.9, zorder=3 if name == "gms" else 2,
+        )  # fmt: skip
     # Zero error is drawn as a circle of radius 2 span, the errors (+-span) around it:
     # nanometres magnified to a visible fraction of the circle.
+    ax.plot(np.linspace(0, 2 * np.pi, 361), np.zeros(361), "k--", lw=0.8, label="commanded")
     ax.set_rorigin(-2 * span_nm)
     ax.set_rlim(-span_nm, span_nm)
-    ax.set_title(f"radial error [nm] on a {radius_m * 1e3:g} mm circle (zero: the circle)")
-    ax.legend(loc="lower left", fontsize=8)
+    ax.set_rlabel_position(22.5)
+    ax.set_title(
+        f"circularity, {radius_m * 1e3:g} mm circle at {s.scenario.feed_m_s * 60:g} m/min\n"
+        "radial error [nm], magnified about the commanded circle (dashed)",
+        fontsize=10,
+    )
+    ax.legend(loc="lower left", fontsize=8, bbox_to_anchor=(-0.1, -0.1))
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=120)
     plt.close(fig)
+    return path
 
 
-def _plot(results: dict[str, RunResult], s: Scenario, path: Path) -> None:
+def _plot(results: dict[str, RunResult], s: Scenario, path: Path) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -237,5 +304,7 @@ def _plot(results: dict[str, RunResult], s: Scenario, path: Path) -> None:
     ax.set_title(f"{s.scenario.trajectory}: following error at the first reversal")
     ax.legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=120)
     plt.close(fig)
+    return path
