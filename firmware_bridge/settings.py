@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
 
 from gms_comp.config import (
     default_config_path,
@@ -20,7 +19,13 @@ from gms_comp.config import (
     read_toml,
 )
 
-ProfileName = Literal["cia402", "e2e"]
+from .profiles import PROFILES
+
+ProfileName = str  # a key of firmware_bridge.profiles.PROFILES
+
+
+def _registered(value: object) -> str | None:
+    return None if value in PROFILES else f"must be one of {', '.join(map(repr, PROFILES))}"
 
 
 @dataclass(frozen=True)
@@ -39,7 +44,7 @@ class CanConfig:
     drive's (0x1017).
     """
 
-    profile: ProfileName = "cia402"
+    profile: ProfileName = field(default="cia402", metadata={"check": _registered})
     interface: str = "virtual"
     channel: str = "gms-comp"
     bitrate_bit_s: int = field(default=1_000_000, metadata=positive())
@@ -64,11 +69,6 @@ class CanConfig:
         if self.drive_node_id == self.compensator_node_id:
             found.append(("compensator_node_id", "must differ from drive_node_id"))
         return found
-
-    @property
-    def follows_sync(self) -> bool:
-        """The compensator sends each RPDO in answer to the NC's SYNC (cia402 only)."""
-        return self.profile == "cia402" and not self.sync_master
 
     @property
     def timeout_cycles(self) -> int:

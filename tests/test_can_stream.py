@@ -107,7 +107,7 @@ def test_second_compensator_on_the_channel_is_refused(
 ) -> None:
     """One compensator per drive: a stream already running on the channel is detected."""
     channel = f"cli-dup-{profile}-{tmp_path.name}"
-    first = replace(CanConfig(), profile=profile, channel=channel)  # type: ignore[arg-type]
+    first = replace(CanConfig(), profile=profile, channel=channel)
     reports: list[dict[str, Any]] = []
     other = threading.Thread(
         target=lambda: reports.append(run_stream(first, lambda t_s: 0.1, duration_s=1.0))

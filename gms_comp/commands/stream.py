@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from firmware_bridge.faults import parse_fault
+from firmware_bridge.profiles import PROFILES
 from firmware_bridge.session import FeedforwardSource, Rig, stream_on
 from firmware_bridge.settings import CanConfig, load_can_config
 from gms_comp.config import default_config_path
@@ -27,7 +28,7 @@ def register(subparsers: Any) -> None:
         description=__doc__,
     )
     p.add_argument("config", nargs="?", type=Path, help="config file (default: Table 1)")
-    p.add_argument("--profile", choices=("cia402", "e2e"), help="override [can] profile")
+    p.add_argument("--profile", choices=tuple(PROFILES), help="override [can] profile")
     p.add_argument("--interface", help="python-can interface (virtual, socketcan, pcan, ...)")
     p.add_argument("--channel", help="python-can channel")
     p.add_argument("--duration", type=float, default=2.0, metavar="S", help="seconds (2)")
