@@ -117,6 +117,22 @@ class Rig:
         self.send_cycle(cycle, current_A)
         return self.drive.step(cycle * self.cfg.cycle_period_s)
 
+    def stop(self) -> str:
+        """End a clean stream (the ramp to zero is done): the profile's stop frames.
+
+        Returns
+        -------
+        str
+            What the stop did, for the report.
+        """
+        frames, note = self.tx.stop_frames()
+        try:
+            for msg in frames:
+                self.streamer.bus.send(msg)
+        except can.CanError:
+            return "ramped to 0 A; the stop frames could not be sent (bus off)"
+        return f"ramped to 0 A; {note}"
+
     def report(self) -> dict[str, Any]:
         """The stream summary (timing keys are added by the real-time runner).
 
@@ -227,6 +243,8 @@ def stream_on(
             timing = _follower_loop(rig, rig.tx.sync, source, duration_s, clock)
         else:
             timing = _control_loop(rig, source, duration_s, clock)
+        if not timing.get("sync_lost"):
+            timing["end_of_stream"] = rig.stop()
     finally:
         time.sleep(cfg.fallback_time_s)  # let the drive see the end of the stream
         stop.set()

@@ -21,6 +21,7 @@ from gms_comp.config import (
 
 from .profiles import PROFILES
 
+MIN_CYCLE_S = 1e-4  # 10 kHz: beyond what classic CAN carries, and the loop's time budget
 ProfileName = str  # a key of firmware_bridge.profiles.PROFILES
 
 
@@ -48,7 +49,7 @@ class CanConfig:
     interface: str = "virtual"
     channel: str = "gms-comp"
     bitrate_bit_s: int = field(default=1_000_000, metadata=positive())
-    cycle_period_s: float = field(default=1e-3, metadata=positive())
+    cycle_period_s: float = field(default=1e-3, metadata=in_range(MIN_CYCLE_S, 1.0))
     max_current_A: float = field(default=1.0, metadata=positive())
     ramp_time_s: float = field(default=5e-3, metadata=positive())
     rx_timeout_s: float = field(default=3e-3, metadata=positive())

@@ -103,7 +103,7 @@ def test_stream_to_an_emulator_in_another_process(tmp_path: Path, sync_master: b
                 "--external-drive",
                 "--duration",
                 "1",
-                "--json",
+                "-o",
                 str(report_path),
                 "--log",
                 str(log_path),

@@ -70,6 +70,10 @@ class CompensatorTx(Protocol):
         """Profile-specific keys of the stream report."""
         ...
 
+    def stop_frames(self) -> tuple[list[can.Message], str]:
+        """Frames that end a clean stream after the ramp to zero, and what they do."""
+        ...
+
 
 class DriveSide(Protocol):
     """The drive's side of a profile: what the emulator (or a firmware) runs."""

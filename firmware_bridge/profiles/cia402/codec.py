@@ -40,6 +40,8 @@ HEARTBEAT_OPERATIONAL = 0x05
 PER_MILLE = 1000
 
 # EMCY error codes (CiA 301 communication errors)
+NMT_START, NMT_STOP, NMT_ENTER_PRE_OPERATIONAL = 0x01, 0x02, 0x80
+HEARTBEAT_PRE_OPERATIONAL = 0x7F
 EMCY_RPDO_TIMEOUT = 0x8250
 EMCY_HEARTBEAT = 0x8130
 EMCY_SYNC_LOST = 0x8100
@@ -96,6 +98,7 @@ class Cia402Codec:
         self.rpdo_cob_id = od_default(od, RPDO1_COMM, 1) & 0x7FF
         self.sync_cob_id = od_default(od, 0x1005) & 0x7FF
         self.heartbeat_cob_id = 0x700 + cfg.compensator_node_id
+        self.drive_node_id = cfg.drive_node_id
         self.rated_current_A = cfg.rated_current_A
         self.limit_raw = 2**15 - 1
 
@@ -123,6 +126,14 @@ class Cia402Codec:
 
     def sync_frame(self) -> can.Message:
         return can.Message(arbitration_id=self.sync_cob_id, data=b"", is_extended_id=False)
+
+    def leave_operation_frame(self) -> can.Message:
+        """NMT "enter pre-operational" to the drive: PDOs and their supervision end."""
+        return can.Message(
+            arbitration_id=0x000,
+            data=bytes([NMT_ENTER_PRE_OPERATIONAL, self.drive_node_id]),
+            is_extended_id=False,
+        )
 
     def heartbeat_frame(self) -> can.Message:
         return heartbeat_frame(self.heartbeat_cob_id)

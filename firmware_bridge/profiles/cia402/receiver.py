@@ -15,6 +15,10 @@ from .codec import (
     EMCY_RPDO_TIMEOUT,
     EMCY_SYNC_LOST,
     HEARTBEAT_OPERATIONAL,
+    HEARTBEAT_PRE_OPERATIONAL,
+    NMT_ENTER_PRE_OPERATIONAL,
+    NMT_START,
+    NMT_STOP,
     PRODUCER_HEARTBEAT,
     RPDO1_COMM,
     TORQUE_OFFSET,
@@ -56,6 +60,7 @@ class Cia402Receiver:
         self.emcy_sent: list[int] = []
         self.heartbeats_sent = 0
         self._next_heartbeat_s: float | None = None
+        self.out_of_operation = False  # taken out of operation by NMT: no PDO, no supervision
 
     def on_message(self, msg: can.Message, now_s: float) -> None:
         cob_id = msg.arbitration_id
@@ -71,6 +76,9 @@ class Cia402Receiver:
             self._close_window()
         elif cob_id == self.heartbeat_producer:
             self.last_heartbeat_s = now_s
+        elif cob_id == 0x000 and len(msg.data) == 2:
+            self._on_nmt(msg.data[0], msg.data[1])
+            self.node.network.notify(cob_id, msg.data, msg.timestamp)
         else:  # SDO, NMT: the canopen LocalNode answers
             self.node.network.notify(cob_id, msg.data, msg.timestamp)
 
@@ -91,8 +99,27 @@ class Cia402Receiver:
             if verdict is Verdict.ACCEPTED:
                 self.fresh = (raw, data)
 
+    def _on_nmt(self, command: int, node_id: int) -> None:
+        """An orderly stop (pre-operational, stopped) ends PDOs and their supervision."""
+        if node_id not in (0, self.node.id):
+            return
+        if command in (NMT_ENTER_PRE_OPERATIONAL, NMT_STOP):
+            self.out_of_operation = True
+            self.active_faults.clear()
+            self.window = []
+        elif command == NMT_START:
+            self.out_of_operation = False
+            self.last_sync_s = self.last_heartbeat_s = None
+
     def tick(self, now_s: float) -> int:
         """One drive cycle at time ``now_s``; returns the applied 0x60B2 value."""
+        if self.out_of_operation:  # no PDO applied, nothing supervised, output to zero
+            self.fresh = self.applied_data = None
+            out = self.supervisor.tick(None)
+            self.clock.tick()
+            write_object(self.node, TORQUE_OFFSET, None, out)
+            self._produce_heartbeat(now_s)
+            return out
         self._supervise(now_s)
         # a lost SYNC or heartbeat voids the link; a lost RPDO ends with the next one
         fresh = None if self.active_faults - {EMCY_RPDO_TIMEOUT} else self.fresh
@@ -119,7 +146,8 @@ class Cia402Receiver:
             return
         if self._next_heartbeat_s is None or now_s >= self._next_heartbeat_s:
             cob_id = 0x700 + int(self.node.id or 0)
-            self.node.network.send_message(cob_id, bytes([HEARTBEAT_OPERATIONAL]))
+            state = HEARTBEAT_PRE_OPERATIONAL if self.out_of_operation else HEARTBEAT_OPERATIONAL
+            self.node.network.send_message(cob_id, bytes([state]))
             self.heartbeats_sent += 1
             self._next_heartbeat_s = now_s + period_s - 1e-9
 
@@ -156,6 +184,10 @@ class Cia402Receiver:
 
     @property
     def state(self) -> str:
+        """``operation_enabled``, ``waiting`` (no feedforward yet or link lost without a
+        fault), ``pre_operational`` (stopped in order by NMT) or the 0x6007 reaction."""
+        if self.out_of_operation:
+            return "pre_operational"
         if self.active_faults or self.supervisor.link_lost:
             return self.abort_action if self.active_faults else "waiting"
         return "operation_enabled"

@@ -66,6 +66,18 @@ class Cia402Tx:
         elif cob_id == 0x700 + self.cfg.drive_node_id and msg.data[:1] != _BOOTUP:
             self.drive_heartbeats += 1
 
+    def stop_frames(self) -> tuple[list[can.Message], str]:
+        """As SYNC master: NMT pre-operational to the drive, so silence is no fault.
+
+        Following an NC's SYNC, the NC owns the drive's state: nothing is sent.
+        """
+        if self.follows_sync:
+            return [], "the NC owns the drive's state: the drive sees the RPDOs stop"
+        return [self.codec.leave_operation_frame()], (
+            f"NMT pre-operational sent to drive node {self.cfg.drive_node_id}: "
+            "PDOs and their supervision end without a fault"
+        )
+
     def report(self) -> dict[str, Any]:
         """Who produced SYNC, and the drive heartbeats heard."""
         return {

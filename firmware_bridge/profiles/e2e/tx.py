@@ -58,6 +58,10 @@ class E2eTx:
         data = self._last_status_data
         return None if data is None else self.codec.check_status(data)
 
+    def stop_frames(self) -> tuple[list[can.Message], str]:
+        """Nothing: the firmware holds, then ramps to zero and waits for the next stream."""
+        return [], "the firmware falls back to 0 A after rx_timeout and waits (state resync)"
+
     def report(self) -> dict[str, Any]:
         """No SYNC in this profile."""
         return {"sync_source": None}
