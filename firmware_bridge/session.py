@@ -89,6 +89,7 @@ class Rig:
             raise
 
     def close(self) -> None:
+        """Close every bus the rig opened."""
         self._stack.close()
 
     def __enter__(self) -> Rig:
@@ -99,6 +100,7 @@ class Rig:
 
     @property
     def drive(self) -> DriveEmulator:
+        """The built-in drive emulator (an error with an external drive)."""
         if self.emulator is None:
             raise BusError("this rig streams to an external drive: no emulator to step")
         return self.emulator

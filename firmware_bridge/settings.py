@@ -63,6 +63,7 @@ class CanConfig:
     status_every_cycles: int = field(default=1, metadata=in_range(1, 1000))
 
     def problems(self) -> list[tuple[str, str]]:
+        """Inconsistencies between keys, as ``(key, reason)``."""
         found = []
         for name in ("rx_timeout_s", "ramp_time_s", "heartbeat_period_s"):
             if getattr(self, name) < self.cycle_period_s:

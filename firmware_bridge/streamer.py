@@ -54,9 +54,15 @@ class Shaper:
 
 
 class Sender(Protocol):
-    def send(self, msg: can.Message, timeout: float | None = None) -> None: ...
+    """What the streamer needs of a bus."""
 
-    def recv(self, timeout: float | None = None) -> can.Message | None: ...
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        """Send one frame."""
+        ...
+
+    def recv(self, timeout: float | None = None) -> can.Message | None:
+        """The next frame, or None after ``timeout`` s."""
+        ...
 
 
 @dataclass

@@ -49,10 +49,12 @@ ABORT_ACTIONS = {0: "no_action", 1: "fault", 2: "disable_voltage", 3: "quick_sto
 
 
 def default_eds_path() -> Path:
+    """Path of the packaged drive EDS."""
     return packaged_path("cia402_drive.eds")
 
 
 def load_drive_od(node_id: int, eds_path: str | Path | None = None) -> ObjectDictionary:
+    """The drive's object dictionary for node ``node_id`` from the EDS."""
     path = Path(eds_path) if eds_path is not None else default_eds_path()
     try:
         return canopen.import_od(str(path), node_id)
@@ -67,10 +69,12 @@ def od_default(od: ObjectDictionary, index: int, subindex: int | None = None) ->
 
 
 def read_object(node: canopen.LocalNode, index: int, subindex: int | None = None) -> int:
+    """Value of an object of the local node's dictionary."""
     return int(_sdo_entry(node, index, subindex).raw)
 
 
 def write_object(node: canopen.LocalNode, index: int, subindex: int | None, value: int) -> None:
+    """Write an object of the local node's dictionary."""
     _sdo_entry(node, index, subindex).raw = value
 
 
@@ -103,9 +107,11 @@ class Cia402Codec:
         self.limit_raw = 2**15 - 1
 
     def to_raw(self, current_A: float) -> int:
+        """Current in A -> per mille of the rated current (not saturated)."""
         return round(PER_MILLE * current_A / self.rated_current_A)
 
     def from_raw(self, raw: int) -> float:
+        """Per mille of the rated current -> current in A."""
         return raw * self.rated_current_A / PER_MILLE
 
     def rpdo_frame(self, raw: int, counter: int) -> can.Message:
@@ -125,6 +131,7 @@ class Cia402Codec:
         return int(raw), int(counter)
 
     def sync_frame(self) -> can.Message:
+        """A SYNC frame (no counter)."""
         return can.Message(arbitration_id=self.sync_cob_id, data=b"", is_extended_id=False)
 
     def leave_operation_frame(self) -> can.Message:
@@ -136,6 +143,7 @@ class Cia402Codec:
         )
 
     def heartbeat_frame(self) -> can.Message:
+        """The compensator's heartbeat, operational."""
         return heartbeat_frame(self.heartbeat_cob_id)
 
 

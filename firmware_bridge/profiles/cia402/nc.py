@@ -26,6 +26,7 @@ class SyncProducer:
         self.sent = 0
 
     def send(self) -> None:
+        """Send one SYNC now."""
         self.bus.send(self.frame)
         self.sent += 1
 

@@ -63,6 +63,7 @@ class Cia402Receiver:
         self.out_of_operation = False  # taken out of operation by NMT: no PDO, no supervision
 
     def on_message(self, msg: can.Message, now_s: float) -> None:
+        """Take one frame received at ``now_s``: RPDO, SYNC, heartbeat, NMT, SDO."""
         cob_id = msg.arbitration_id
         if msg.is_error_frame:
             self.counts.add(Verdict.CORRUPT)  # the controller's CRC caught a damaged frame

@@ -59,11 +59,14 @@ def _crc_holds(data: bytes, data_id: int) -> bool:
 
 
 def default_dbc_path() -> Path:
+    """Path of the packaged feedforward DBC."""
     return packaged_path("gms_ff.dbc")
 
 
 @dataclass(frozen=True)
 class DriveStatus:
+    """The drive's status frame, decoded."""
+
     counter: int
     applied_current_A: float
     state: int
@@ -101,9 +104,11 @@ class E2eCodec:
         return round(current_A / self.scale_A)
 
     def from_raw(self, raw: int) -> float:
+        """The ``Current`` signal's raw value -> current in A."""
         return raw * self.scale_A
 
     def encode_command(self, counter: int, raw: int) -> bytes:
+        """FfCommand payload with ``counter`` (modulo 256), ``raw`` and its CRC."""
         data = self.command.encode(
             {"Crc": 0, "Counter": counter % COUNTER_MODULUS, "Current": raw},
             scaling=False,
@@ -112,6 +117,7 @@ class E2eCodec:
         return _with_crc(data, self.command_data_id)
 
     def command_frame(self, counter: int, raw: int) -> can.Message:
+        """FfCommand frame with ``counter`` and ``raw``."""
         return can.Message(
             arbitration_id=self.command.frame_id,
             data=self.encode_command(counter, raw),
@@ -131,6 +137,7 @@ class E2eCodec:
     def status_frame(
         self, counter: int, applied_raw: int, state: int, rejected: int
     ) -> can.Message:
+        """DriveStatus frame of the drive's cycle ``counter``."""
         data = self.status.encode(
             {
                 "Crc": 0,
@@ -149,6 +156,7 @@ class E2eCodec:
         )
 
     def check_status(self, data: bytes) -> DriveStatus | None:
+        """The decoded status of an intact DriveStatus payload, else None."""
         if len(data) != self.status.length or not _crc_holds(data, self.status_data_id):
             return None
         f = _decode_raw(self.status, data)
