@@ -34,18 +34,26 @@ from pathlib import Path
 from typing import Any
 
 import can
-import canopen
 
-from gms_comp.errors import GmsCompError
+from gms_comp.errors import BusError, GmsCompError
 
-from .cia402 import Cia402Codec, Cia402Receiver, SyncProducer, configure_drive, load_drive_od
-from .e2e import E2eCodec, E2eReceiver
+from .bus import open_bus
+from .profiles import PROFILES
+from .profiles.base import DriveSide, get_profile
 from .settings import CanConfig, load_can_config
-from .supervisor import RejectCounts, Supervisor, Verdict
+from .supervisor import RejectCounts, Verdict
 
 
 class DriveEmulator:
-    """A drive receiving the feedforward of profile ``cfg.profile`` on ``bus``."""
+    """A drive receiving the feedforward of profile ``cfg.profile`` on ``bus``.
+
+    Parameters
+    ----------
+    cfg
+        The ``[can]`` section.
+    bus
+        The drive's bus handle.
+    """
 
     def __init__(self, cfg: CanConfig, bus: can.BusABC) -> None:
         self.cfg = cfg
@@ -55,75 +63,25 @@ class DriveEmulator:
         self.max_applied_current_A = 0.0
         self.applied_log: list[tuple[float, bytes]] = []
         self.frames_applied = 0
-        if cfg.profile == "e2e":
-            self._init_e2e()
-        else:
-            self._init_cia402()
-
-    def _init_e2e(self) -> None:
-        codec = E2eCodec()
-        limit = min(codec.limit_raw, codec.to_raw(self.cfg.max_current_A))
-        supervisor = Supervisor(limit, self.cfg.timeout_cycles, self.cfg.ramp_cycles)
-        self.e2e: E2eReceiver | None = E2eReceiver(codec, supervisor, self.cfg.max_frame_age_cycles)
-        self.cia402: Cia402Receiver | None = None
-        self._from_raw = codec.from_raw
-        self.node: canopen.LocalNode | None = None
-
-    def _init_cia402(self) -> None:
-        od = load_drive_od(self.cfg.drive_node_id)
-        self.node = canopen.LocalNode(self.cfg.drive_node_id, od)
-        network = canopen.Network(self.bus)  # no notifier: the emulator dispatches itself
-        network.add_node(self.node)
-        configure_drive(self.node, self.cfg)
-        codec = Cia402Codec(self.cfg, od)
-        limit = min(codec.limit_raw, codec.to_raw(self.cfg.max_current_A))
-        self.cia402 = Cia402Receiver(self.node, codec, self.cfg, limit)
-        self.e2e = None
-        self._from_raw = codec.from_raw
+        self.side: DriveSide = get_profile(cfg.profile).make_drive(cfg, bus)
 
     @property
     def counts(self) -> RejectCounts:
-        receiver = self.e2e if self.e2e is not None else self.cia402
-        assert receiver is not None
-        return receiver.counts
-
-    @property
-    def supervisor(self) -> Supervisor:
-        receiver = self.e2e if self.e2e is not None else self.cia402
-        assert receiver is not None
-        return receiver.supervisor
+        """Received frames by verdict."""
+        return self.side.counts
 
     def handle(self, msg: can.Message, now_s: float) -> None:
-        if self.e2e is not None:
-            if msg.arbitration_id == self.e2e.codec.command.frame_id:
-                self.e2e.on_frame(bytes(msg.data))
-            elif msg.is_error_frame:
-                self.e2e.counts.add(Verdict.CORRUPT)
-        else:
-            assert self.cia402 is not None
-            self.cia402.on_message(msg, now_s)
+        """Take one frame received at ``now_s``."""
+        self.side.handle(msg, now_s)
 
     def tick(self, now_s: float) -> float:
         """Run one drive cycle; returns the feedforward current applied in it."""
-        if self.e2e is not None:
-            fresh = self.e2e.fresh_data
-            self.e2e.fresh_data = None
-            out = self.e2e.tick()
-            if self.cycle % self.cfg.status_every_cycles == 0:
-                self.bus.send(
-                    self.e2e.codec.status_frame(
-                        self.cycle, out, self.e2e.state, self.counts.total_rejected
-                    )
-                )
-        else:
-            assert self.cia402 is not None
-            out = self.cia402.tick(now_s)
-            fresh = self.cia402.applied_data
+        out, fresh = self.side.tick(now_s, self.cycle)
         if fresh is not None:
             self.frames_applied += 1
             self.applied_log.append((now_s, fresh))
         self.cycle += 1
-        self.applied_current_A = self._from_raw(out)
+        self.applied_current_A = self.side.from_raw(out)
         self.max_applied_current_A = max(self.max_applied_current_A, abs(self.applied_current_A))
         return self.applied_current_A
 
@@ -163,31 +121,21 @@ class DriveEmulator:
 
     def status(self) -> dict[str, Any]:
         """Counters and state, in the units of the JSON report."""
-        state: Any
-        if self.e2e is not None:
-            state = ("resync", "active", "hold", "fallback")[self.e2e.state]
-            emcy: list[str] = []
-        else:
-            assert self.cia402 is not None
-            state = self.cia402.state
-            emcy = [f"0x{code:04X}" for code in self.cia402.emcy_sent]
         counts = self.counts
         return {
             "profile": self.cfg.profile,
-            "state": state,
+            "state": self.side.state(),
             "frames_applied": self.frames_applied,
             "frames_rejected": counts.rejected,
             "frames_resync": counts.counts[Verdict.RESYNC],
             "applied_current_A": self.applied_current_A,
             "max_applied_current_A": self.max_applied_current_A,
-            "emcy": emcy,
+            "emcy": self.side.emcy(),
         }
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the drive emulator as its own process (see the module docstring)."""
-    from .session import open_bus  # the session imports this module
-
     args = _parser().parse_args(argv)
     stop = threading.Event()
     for signum in (signal.SIGTERM, signal.SIGINT):
@@ -201,9 +149,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         with ExitStack() as stack:
             drive = DriveEmulator(cfg, stack.enter_context(open_bus(cfg)))
             devices = []
-            if args.nc_sync and drive.cia402 is not None:
-                nc_bus = stack.enter_context(open_bus(cfg))
-                nc = SyncProducer(nc_bus, drive.cia402.codec, cfg.cycle_period_s)
+            if args.nc_sync:
+                nc_cfg = replace(cfg, sync_master=False)
+                nc = get_profile(cfg.profile).make_nc(nc_cfg, stack.enter_context(open_bus(cfg)))
+                if nc is None:
+                    raise BusError(f"--nc-sync: profile {cfg.profile} has no SYNC")
                 devices.append(threading.Thread(target=nc.run, args=(stop, time.time)))
             print("ready", flush=True)
             timer = threading.Timer(args.duration, stop.set)
@@ -228,7 +178,7 @@ def _parser() -> argparse.ArgumentParser:
         description="The drive emulator as a node of a CAN bus.",
     )
     p.add_argument("config", nargs="?", type=Path, help="config file (default: Table 1)")
-    p.add_argument("--profile", choices=("cia402", "e2e"), help="override [can] profile")
+    p.add_argument("--profile", choices=tuple(PROFILES), help="override [can] profile")
     p.add_argument("--interface", help="python-can interface")
     p.add_argument("--channel", help="python-can channel")
     p.add_argument(

@@ -33,12 +33,15 @@ _SPEC = re.compile(
 
 @dataclass(frozen=True)
 class Fault:
+    """A fault of one kind, hitting with ``probability`` while ``start_s <= t < end_s``."""
+
     kind: FaultKind
     probability: float = 1.0
     start_s: float = 0.0
     end_s: float = math.inf
 
     def active(self, now_s: float) -> bool:
+        """Whether the fault is active at ``now_s``."""
         return self.start_s <= now_s < self.end_s
 
 
@@ -102,9 +105,11 @@ class FaultyBus:
         return max(ends, default=None)
 
     def stalled(self) -> bool:
+        """Whether the control loop is stalled in the current cycle."""
         return self.stall_end(self.now_s) is not None
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        """Send ``msg``, damaged, delayed or dropped as the active faults say."""
         if self._hits("bus_error"):
             self._count("bus_error")
             raise can.CanOperationError("bus off (injected fault)")
@@ -151,4 +156,5 @@ class FaultyBus:
         self.bus.send(msg)
 
     def recv(self, timeout: float | None = None) -> can.Message | None:
+        """Receive from the underlying bus (faults act on sending only)."""
         return self.bus.recv(timeout)

@@ -14,7 +14,9 @@ and the stream audit (:func:`firmware_bridge.streamer.count_unsent_applied`):
     compared through :func:`is_fresh` with a tolerance of
     :data:`AGE_TOLERANCE_CYCLES` for ages measured in float time.
 
-A frame that arrives early (negative age) shows the anchor was set by a late
+Besides, a frame must be newer than the last one applied (else it is a
+duplicate or out of order) while that one is itself fresh. A frame that
+arrives early (negative age) shows the anchor was set by a late
 frame: the anchor moves to it, so ages only ever get stricter. The anchor
 outlives a lost link (compensator and drive keep counting cycles), so the first
 frame after an outage is judged like any other. Only a steady run of
@@ -33,6 +35,7 @@ AGE_TOLERANCE_CYCLES = 1e-6
 """Slack on the boundary for ages computed from float times, in cycles (1 ns at 1 ms)."""
 MAX_EARLY_CYCLES = COUNTER_MODULUS // 4
 """A frame further ahead of the anchor than this is taken as an old one, wrapped around."""
+_AGE_CAP = 2**30
 REANCHOR_FRAMES = 16
 """Consecutive frames late by the same amount that re-establish the anchor."""
 
@@ -80,6 +83,7 @@ class FrameClock:
     anchored: bool = False
     offset: int = 0  # drive cycle minus counter of a frame of age 0
     last_counter: int | None = None
+    last_age: int = 0  # age of the last accepted frame, counted up without wrapping
     _late_offset: int | None = None
     _late_run: int = 0
     _late_counter: int = 0
@@ -87,6 +91,7 @@ class FrameClock:
     def tick(self) -> None:
         """One drive cycle has passed."""
         self.cycle = (self.cycle + 1) % COUNTER_MODULUS
+        self.last_age = min(self.last_age + 1, _AGE_CAP)
 
     def link_lost(self) -> None:
         """Forget the last counter (the anchor stays): any newer frame may follow."""
@@ -101,8 +106,11 @@ class FrameClock:
         if not self.anchored:
             self._anchor(counter)
             return Verdict.RESYNC
-        if self.last_counter is not None:
-            delta = (counter - self.last_counter) % COUNTER_MODULUS
+        # order against the last accepted frame while it is itself fresh; once it is
+        # older than the window, any frame older still is stale by its age anyway
+        last = self.last_counter
+        if last is not None and is_fresh(self.last_age, self.max_age_cycles):
+            delta = (counter - last) % COUNTER_MODULUS
             if delta == 0:
                 return Verdict.DUPLICATE
             if delta >= COUNTER_MODULUS // 2:
@@ -114,6 +122,7 @@ class FrameClock:
             self.offset = (self.offset + age) % COUNTER_MODULUS
         self._late_run = 0
         self.last_counter = counter
+        self.last_age = max(age, 0)
         return Verdict.ACCEPTED
 
     def _late(self, counter: int) -> Verdict:
@@ -134,4 +143,5 @@ class FrameClock:
         self.anchored = True
         self.offset = (self.cycle - counter) % COUNTER_MODULUS
         self.last_counter = counter
+        self.last_age = 0
         self._late_run = 0

@@ -76,12 +76,14 @@ class CanFeedforwardLink:
         self.close()
 
     def close(self) -> None:
+        """Close the rig and its buses."""
         if self._rig is not None:
             self._rig.close()
             self._rig = None
 
     @property
     def rig(self) -> Rig:
+        """The open rig (only inside the ``with`` block)."""
         if self._rig is None:
             raise RuntimeError("CanFeedforwardLink is used outside its 'with' block")
         return self._rig
@@ -93,4 +95,5 @@ class CanFeedforwardLink:
         return self._applied_A
 
     def report(self) -> dict[str, Any]:
+        """The stream report of the rig so far."""
         return self.rig.report()

@@ -26,13 +26,13 @@ import numpy as np
 
 from gms_comp.errors import BusError
 
+from .bus import open_bus
 from .busload import check_bus_load
-from .cia402 import SyncProducer
 from .emulator import DriveEmulator
 from .faults import Fault, FaultyBus
+from .profiles.base import CompensatorTx, Device, SyncCounter, get_profile
 from .settings import CanConfig
 from .streamer import (
-    Cia402Tx,
     Streamer,
     check_channel_free,
     count_unsent_applied,
@@ -44,16 +44,6 @@ FeedforwardSource = Callable[[float], float]  # time in s -> feedforward current
 CHANNEL_CHECK_S = 0.02  # listen this long (at least 10 cycles) for another compensator
 FIRST_SYNC_WAIT_S = 2.0  # a follower waits this long for the NC's first SYNC
 SYNC_GONE_S = 0.5  # ... and ends the stream when SYNC stops for this long
-
-
-def open_bus(cfg: CanConfig) -> can.BusABC:
-    """A bus handle on the configured interface and channel."""
-    try:
-        return can.Bus(interface=cfg.interface, channel=cfg.channel, bitrate=cfg.bitrate_bit_s)
-    except (can.CanError, ImportError, OSError, ValueError) as err:
-        raise BusError(
-            f"cannot open CAN interface {cfg.interface!r} channel {cfg.channel!r}: {err}"
-        ) from err
 
 
 class Rig:
@@ -70,12 +60,12 @@ class Rig:
         builtin_drive: bool = True,
     ) -> None:
         self.cfg = cfg
-        self.tx = make_tx(cfg)
+        self.tx: CompensatorTx = make_tx(cfg)
         self.bus_load = profile_bus_load(cfg, self.tx)
         check_bus_load(self.bus_load)
         self._stack = ExitStack()
         self.emulator: DriveEmulator | None = None
-        self.nc_sync: SyncProducer | None = None
+        self.nc_sync: Device | None = None
         self.realtime = False  # set by run_stream: the drive applies at its next cycle
         try:
             comp_bus = self._stack.enter_context(open_bus(cfg))
@@ -91,14 +81,15 @@ class Rig:
             self.streamer = Streamer(cfg, self.faulty, self.tx)
             if builtin_drive:
                 self.emulator = DriveEmulator(cfg, self._stack.enter_context(open_bus(cfg)))
-            if builtin_drive and isinstance(self.tx, Cia402Tx) and cfg.follows_sync:
+            if builtin_drive and self.tx.follows_sync:
                 nc_bus = self._stack.enter_context(open_bus(cfg))
-                self.nc_sync = SyncProducer(nc_bus, self.tx.codec, cfg.cycle_period_s)
+                self.nc_sync = get_profile(cfg.profile).make_nc(cfg, nc_bus)
         except BaseException:
             self._stack.close()
             raise
 
     def close(self) -> None:
+        """Close every bus the rig opened."""
         self._stack.close()
 
     def __enter__(self) -> Rig:
@@ -109,6 +100,7 @@ class Rig:
 
     @property
     def drive(self) -> DriveEmulator:
+        """The built-in drive emulator (an error with an external drive)."""
         if self.emulator is None:
             raise BusError("this rig streams to an external drive: no emulator to step")
         return self.emulator
@@ -127,6 +119,22 @@ class Rig:
         self.send_cycle(cycle, current_A)
         return self.drive.step(cycle * self.cfg.cycle_period_s)
 
+    def stop(self) -> str:
+        """End a clean stream (the ramp to zero is done): the profile's stop frames.
+
+        Returns
+        -------
+        str
+            What the stop did, for the report.
+        """
+        frames, note = self.tx.stop_frames()
+        try:
+            for msg in frames:
+                self.streamer.bus.send(msg)
+        except can.CanError:
+            return "ramped to 0 A; the stop frames could not be sent (bus off)"
+        return f"ramped to 0 A; {note}"
+
     def report(self) -> dict[str, Any]:
         """The stream summary (timing keys are added by the real-time runner).
 
@@ -135,7 +143,6 @@ class Rig:
         report: dict[str, Any] = {
             "profile": self.cfg.profile,
             "drive": "emulator" if self.emulator is not None else "external",
-            "sync_source": self._sync_source(),
             "frames_sent": self.streamer.frames_sent,
             "send_errors": self.streamer.send_errors,
             "non_finite_feedforward": self.streamer.source_faults,
@@ -143,14 +150,7 @@ class Rig:
             "faults_injected": dict(self.faulty.injected),
             "bus_load": self.bus_load,
         }
-        if isinstance(self.tx, Cia402Tx):
-            report["drive_heartbeats_received"] = self.tx.drive_heartbeats
-        return {**report, **self._drive_report()}
-
-    def _sync_source(self) -> str | None:
-        if self.cfg.profile != "cia402":
-            return None
-        return "nc" if self.cfg.follows_sync else "compensator"
+        return {**report, **self.tx.report(), **self._drive_report()}
 
     def _drive_report(self) -> dict[str, Any]:
         keys = (
@@ -165,7 +165,7 @@ class Rig:
         if self.emulator is None:
             return dict.fromkeys(keys)
         # a follower's RPDO waits for the next SYNC: one cycle more on the way
-        transport = int(self.realtime) + int(self.cfg.follows_sync)
+        transport = int(self.realtime) + int(self.tx.follows_sync)
         status = self.emulator.status()
         return {
             "frames_applied": status["frames_applied"],
@@ -241,10 +241,12 @@ def stream_on(
     for device in devices:
         device.start()
     try:
-        if isinstance(rig.tx, Cia402Tx) and cfg.follows_sync:
-            timing = _follower_loop(rig, rig.tx, source, duration_s, clock)
+        if rig.tx.sync is not None and rig.tx.follows_sync:
+            timing = _follower_loop(rig, rig.tx.sync, source, duration_s, clock)
         else:
             timing = _control_loop(rig, source, duration_s, clock)
+        if not timing.get("sync_lost"):
+            timing["end_of_stream"] = rig.stop()
     finally:
         time.sleep(cfg.fallback_time_s)  # let the drive see the end of the stream
         stop.set()
@@ -311,7 +313,7 @@ def _control_loop(
 
 def _follower_loop(
     rig: Rig,
-    tx: Cia402Tx,
+    sync: SyncCounter,
     source: FeedforwardSource,
     duration_s: float,
     clock: Callable[[], float],
@@ -327,43 +329,43 @@ def _follower_loop(
     period = rig.cfg.cycle_period_s
     n_cycles = round(duration_s / period)
     stats = _LoopStats(period)
-    seen = tx.syncs_seen
+    seen = sync.seen
     cycle = -1
     first_sync_s = 0.0
     wait_s = FIRST_SYNC_WAIT_S
     sync_lost = False
     while cycle + 1 < n_cycles or rig.streamer.shaper.value_raw != 0:
-        if not _await_sync(rig, tx, seen, wait_s, clock):
+        if not _await_sync(rig, sync, seen, wait_s, clock):
             sync_lost = True  # the NC stopped: stay silent, the drive falls back
             break
         wait_s = SYNC_GONE_S
         if cycle < 0:
-            first_sync_s, slot = tx.last_sync_s, 0
+            first_sync_s, slot = sync.last_s, 0
         else:
-            slot = max(cycle + 1, round((tx.last_sync_s - first_sync_s) / period))
-        seen = tx.syncs_seen
+            slot = max(cycle + 1, round((sync.last_s - first_sync_s) / period))
+        seen = sync.seen
         stats.skipped += slot - cycle - 1 if cycle >= 0 else 0
         cycle = slot
-        lateness = time.time() - tx.last_sync_s
+        lateness = time.time() - sync.last_s
         start = clock()
         current = source(cycle * period) if cycle < n_cycles else None
         rig.send_cycle(cycle, current, cycle * period)
         stats.record(lateness, clock() - start)
-    return {**stats.summary(cycle + 1), "syncs_seen": tx.syncs_seen, "sync_lost": sync_lost}
+    return {**stats.summary(cycle + 1), "syncs_seen": sync.seen, "sync_lost": sync_lost}
 
 
 def _await_sync(
-    rig: Rig, tx: Cia402Tx, seen: int, timeout_s: float, clock: Callable[[], float]
+    rig: Rig, sync: SyncCounter, seen: int, timeout_s: float, clock: Callable[[], float]
 ) -> bool:
     """Handle incoming frames until a SYNC beyond the ``seen`` ones arrives."""
     deadline = clock() + timeout_s
-    while tx.syncs_seen == seen:
+    while sync.seen == seen:
         remaining = deadline - clock()
         if remaining <= 0:
             return False
         msg = rig.faulty.recv(timeout=remaining)
         if msg is not None:
-            tx.on_reply(msg)
+            rig.tx.on_reply(msg)
     return True
 
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
 
 from gms_comp.config import (
     default_config_path,
@@ -20,7 +19,14 @@ from gms_comp.config import (
     read_toml,
 )
 
-ProfileName = Literal["cia402", "e2e"]
+from .profiles import PROFILES
+
+MIN_CYCLE_S = 1e-4  # 10 kHz: beyond what classic CAN carries, and the loop's time budget
+ProfileName = str  # a key of firmware_bridge.profiles.PROFILES
+
+
+def _registered(value: object) -> str | None:
+    return None if value in PROFILES else f"must be one of {', '.join(map(repr, PROFILES))}"
 
 
 @dataclass(frozen=True)
@@ -39,11 +45,11 @@ class CanConfig:
     drive's (0x1017).
     """
 
-    profile: ProfileName = "cia402"
+    profile: ProfileName = field(default="cia402", metadata={"check": _registered})
     interface: str = "virtual"
     channel: str = "gms-comp"
     bitrate_bit_s: int = field(default=1_000_000, metadata=in_range(10_000, 8_000_000))
-    cycle_period_s: float = field(default=1e-3, metadata=in_range(1e-4, 1.0))
+    cycle_period_s: float = field(default=1e-3, metadata=in_range(MIN_CYCLE_S, 1.0))
     max_current_A: float = field(default=1.0, metadata=in_range(1e-3, 1e3))
     ramp_time_s: float = field(default=5e-3, metadata=positive())
     rx_timeout_s: float = field(default=3e-3, metadata=in_range(1e-4, 10.0))
@@ -57,6 +63,7 @@ class CanConfig:
     status_every_cycles: int = field(default=1, metadata=in_range(1, 1000))
 
     def problems(self) -> list[tuple[str, str]]:
+        """Inconsistencies between keys, as ``(key, reason)``."""
         found = []
         for name in ("rx_timeout_s", "ramp_time_s", "heartbeat_period_s"):
             if getattr(self, name) < self.cycle_period_s:
@@ -64,11 +71,6 @@ class CanConfig:
         if self.drive_node_id == self.compensator_node_id:
             found.append(("compensator_node_id", "must differ from drive_node_id"))
         return found
-
-    @property
-    def follows_sync(self) -> bool:
-        """The compensator sends each RPDO in answer to the NC's SYNC (cia402 only)."""
-        return self.profile == "cia402" and not self.sync_master
 
     @property
     def timeout_cycles(self) -> int:

@@ -19,107 +19,15 @@ import can
 from gms_comp.errors import BusError
 
 from .busload import bus_load
-from .cia402 import Cia402Codec, load_drive_od
-from .e2e import DriveStatus, E2eCodec
 from .freshness import AGE_TOLERANCE_CYCLES, is_fresh
+from .profiles.base import CompensatorTx, get_profile
 from .settings import CanConfig
 from .supervisor import saturate, toward_zero
 
-_BOOTUP = b"\x00"  # NMT boot-up: the same COB-ID as the heartbeat, not one
-
-
-class CompensatorTx(Protocol):
-    """What the streamer needs from a profile."""
-
-    target_ids: frozenset[int]  # ids of the feedforward frames (what faults act on)
-    exclusive_ids: frozenset[int]  # ids no other node may send while this one streams
-    self_checked: bool  # feedforward frames carry their own CRC
-    limit_raw: int
-
-    def to_raw(self, current_A: float) -> int: ...
-
-    def frames(self, cycle: int, raw: int) -> tuple[can.Message, list[can.Message]]: ...
-
-    def traffic(self) -> list[tuple[int, float]]: ...
-
-    def on_reply(self, msg: can.Message) -> None: ...
-
-
-class E2eTx:
-    def __init__(self, cfg: CanConfig) -> None:
-        self.cfg = cfg
-        self.codec = E2eCodec()
-        self.target_ids = frozenset({self.codec.command.frame_id})
-        self.exclusive_ids = self.target_ids
-        self.self_checked = True
-        self.limit_raw = min(self.codec.limit_raw, self.codec.to_raw(cfg.max_current_A))
-        self.to_raw = self.codec.to_raw
-        self._last_status_data: bytes | None = None
-
-    def frames(self, cycle: int, raw: int) -> tuple[can.Message, list[can.Message]]:
-        return self.codec.command_frame(cycle, raw), []
-
-    def traffic(self) -> list[tuple[int, float]]:
-        rate = 1.0 / self.cfg.cycle_period_s
-        return [
-            (self.codec.command.length, rate),
-            (self.codec.status.length, rate / self.cfg.status_every_cycles),
-        ]
-
-    def on_reply(self, msg: can.Message) -> None:
-        # kept raw: decoding waits until someone asks, off the control loop's time
-        if msg.arbitration_id == self.codec.status.frame_id:
-            self._last_status_data = bytes(msg.data)
-
-    @property
-    def last_status(self) -> DriveStatus | None:
-        """The drive's latest intact status frame."""
-        data = self._last_status_data
-        return None if data is None else self.codec.check_status(data)
-
-
-class Cia402Tx:
-    def __init__(self, cfg: CanConfig) -> None:
-        self.cfg = cfg
-        self.codec = Cia402Codec(cfg, load_drive_od(cfg.drive_node_id))
-        self.target_ids = frozenset({self.codec.rpdo_cob_id})
-        # our heartbeat's node id, and SYNC when we produce it, are ours alone too
-        own = {self.codec.rpdo_cob_id, self.codec.heartbeat_cob_id}
-        self.exclusive_ids = frozenset(
-            own | ({self.codec.sync_cob_id} if cfg.sync_master else set())
-        )
-        self.self_checked = False
-        self.limit_raw = min(self.codec.limit_raw, self.codec.to_raw(cfg.max_current_A))
-        self.to_raw = self.codec.to_raw
-        self.heartbeat_cycles = max(1, round(cfg.heartbeat_period_s / cfg.cycle_period_s))
-        self.emcy_received: list[int] = []
-        self.drive_heartbeats = 0
-        self.syncs_seen = 0  # SYNCs on the bus, whoever produced them
-        self.last_sync_s = 0.0  # bus timestamp of the latest
-
-    def frames(self, cycle: int, raw: int) -> tuple[can.Message, list[can.Message]]:
-        extra = [self.codec.sync_frame()] if self.cfg.sync_master else []
-        if cycle % self.heartbeat_cycles == 0:
-            extra.append(self.codec.heartbeat_frame())
-        return self.codec.rpdo_frame(raw, cycle), extra
-
-    def traffic(self) -> list[tuple[int, float]]:
-        rate = 1.0 / self.cfg.cycle_period_s  # SYNC is on the bus whoever produces it
-        return [(3, rate), (0, rate), (1, 1.0 / self.cfg.heartbeat_period_s)]
-
-    def on_reply(self, msg: can.Message) -> None:
-        cob_id = msg.arbitration_id
-        if cob_id == self.codec.sync_cob_id:
-            self.syncs_seen += 1
-            self.last_sync_s = msg.timestamp
-        elif cob_id == 0x80 + self.cfg.drive_node_id and len(msg.data) >= 2:
-            self.emcy_received.append(int.from_bytes(msg.data[:2], "little"))
-        elif cob_id == 0x700 + self.cfg.drive_node_id and msg.data[:1] != _BOOTUP:
-            self.drive_heartbeats += 1
-
 
 def make_tx(cfg: CanConfig) -> CompensatorTx:
-    return E2eTx(cfg) if cfg.profile == "e2e" else Cia402Tx(cfg)
+    """The sending side of the configured profile."""
+    return get_profile(cfg.profile).make_tx(cfg)
 
 
 def profile_bus_load(cfg: CanConfig, tx: CompensatorTx) -> float:
@@ -146,9 +54,15 @@ class Shaper:
 
 
 class Sender(Protocol):
-    def send(self, msg: can.Message, timeout: float | None = None) -> None: ...
+    """What the streamer needs of a bus."""
 
-    def recv(self, timeout: float | None = None) -> can.Message | None: ...
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        """Send one frame."""
+        ...
+
+    def recv(self, timeout: float | None = None) -> can.Message | None:
+        """The next frame, or None after ``timeout`` s."""
+        ...
 
 
 @dataclass

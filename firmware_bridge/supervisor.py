@@ -31,6 +31,7 @@ REJECTIONS = (Verdict.CORRUPT, Verdict.DUPLICATE, Verdict.OUT_OF_ORDER, Verdict.
 
 
 def saturate(value: int, limit: int) -> int:
+    """``value`` clamped to ``[-limit, limit]``."""
     return max(-limit, min(limit, value))
 
 
@@ -62,6 +63,7 @@ class Supervisor:
 
     @property
     def ramp_step_raw(self) -> int:
+        """Largest change per cycle of the ramp to zero."""
         return math.ceil(self.limit_raw / self.ramp_cycles)
 
     def tick(self, fresh_raw: int | None) -> int:
@@ -86,12 +88,15 @@ class RejectCounts:
     counts: dict[Verdict, int] = field(default_factory=lambda: dict.fromkeys(Verdict, 0))
 
     def add(self, verdict: Verdict) -> None:
+        """Count one frame with ``verdict``."""
         self.counts[verdict] += 1
 
     @property
     def rejected(self) -> dict[str, int]:
+        """Rejected frames by reason."""
         return {v.value: self.counts[v] for v in REJECTIONS}
 
     @property
     def total_rejected(self) -> int:
+        """All rejected frames."""
         return sum(self.counts[v] for v in REJECTIONS)

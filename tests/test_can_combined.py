@@ -92,7 +92,7 @@ def combined_run(variant: str, seed: int) -> Outcome:
     end = round(FAULTS_END_S / period)
     first_after = next(k for k in fresh if k >= end)
     # a cia402 follower applies the frame of the cycle before
-    lag = 1 if cfg.follows_sync else 0
+    lag = 0 if cfg.sync_master or cfg.profile != "cia402" else 1
     quantum = 2.0 / 1000 if cfg.profile == "cia402" else 1e-4
     tracks = all(
         abs(applied[k] - max(-1.0, min(1.0, wave(k - lag)))) <= quantum / 2 + 1e-9

@@ -15,8 +15,9 @@ import canopen
 import pytest
 
 from firmware_bridge import session
-from firmware_bridge.cia402 import default_eds_path
 from firmware_bridge.emulator import DriveEmulator
+from firmware_bridge.profiles.cia402.codec import default_eds_path
+from firmware_bridge.profiles.cia402.drive import Cia402Drive
 from firmware_bridge.session import Rig, run_stream
 from firmware_bridge.settings import CanConfig
 
@@ -62,11 +63,11 @@ def test_nc_reads_and_writes_drive_objects_by_sdo() -> None:
     with running_drive(config()) as (drive, node):
         assert node.sdo[0x6076].raw == eds_default(0x6076)  # rated torque (force), as shipped
         assert node.sdo[0x6075].raw == 2000  # rated current 2 A in mA, set from [can]
-        assert drive.cia402 is not None
+        assert isinstance(drive.side, Cia402Drive)
         for code, action in ((1, "fault"), (2, "disable_voltage"), (0, "no_action")):
             node.sdo[0x6007].raw = code
             assert node.sdo[0x6007].raw == code
-            assert drive.cia402.abort_action == action
+            assert drive.side.receiver.abort_action == action
 
 
 def test_drive_heartbeat_stops_when_0x1017_is_zeroed() -> None:
@@ -76,8 +77,8 @@ def test_drive_heartbeat_stops_when_0x1017_is_zeroed() -> None:
     # The thread has stopped: step the drive on a clock of its own for 1 s (ten
     # heartbeat periods) rather than sleep and hope the thread was scheduled. The
     # bus is closed too, so a heartbeat would also raise on sending.
-    receiver = drive.cia402
-    assert receiver is not None
+    assert isinstance(drive.side, Cia402Drive)
+    receiver = drive.side.receiver
     sent = receiver.heartbeats_sent
     assert sent >= 1  # it did beat before 0x1017 was zeroed
     start_s = time.time()

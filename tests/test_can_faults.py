@@ -28,7 +28,7 @@ _channels = itertools.count()
 def config(profile: str) -> CanConfig:
     return replace(
         CanConfig(),
-        profile=profile,  # type: ignore[arg-type]
+        profile=profile,
         max_current_A=1.0,
         channel=f"test-faults-{next(_channels)}",
     )

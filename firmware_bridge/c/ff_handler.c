@@ -17,6 +17,7 @@ struct ff_handler {
     uint8_t offset; /* drive cycle minus counter of a frame of age 0 */
     bool has_last;
     uint8_t last_counter;
+    uint32_t last_age; /* age of the last accepted frame, counted up without wrapping */
     uint8_t late_offset;
     uint8_t late_counter;
     uint32_t late_run;
@@ -72,6 +73,7 @@ static void anchor(struct ff_handler *h, uint8_t counter)
     h->offset = (uint8_t)(h->cycle - counter);
     h->has_last = true;
     h->last_counter = counter;
+    h->last_age = 0u;
     h->late_run = 0u;
 }
 
@@ -98,7 +100,9 @@ static enum ff_verdict judge(struct ff_handler *h, uint8_t counter)
         anchor(h, counter);
         return FF_RESYNC;
     }
-    if (h->has_last) {
+    /* order against the last accepted frame while it is itself fresh; once it is
+     * older than the window, any frame older still is stale by its age anyway */
+    if (h->has_last && h->last_age <= h->cfg.max_age_cycles) {
         uint32_t delta = ((uint32_t)counter - h->last_counter) % COUNTER_MODULUS;
         if (delta == 0u) {
             return FF_DUPLICATE;
@@ -118,6 +122,7 @@ static enum ff_verdict judge(struct ff_handler *h, uint8_t counter)
     h->late_run = 0u;
     h->has_last = true;
     h->last_counter = counter;
+    h->last_age = age < 0 ? 0u : (uint32_t)age;
     return FF_ACCEPTED;
 }
 
@@ -184,6 +189,7 @@ int16_t ff_tick(struct ff_handler *h)
     }
     h->has_fresh = false;
     h->cycle = (uint8_t)(h->cycle + 1u);
+    h->last_age = inc_saturating(h->last_age);
     if (h->link_lost && !was_lost) {
         h->has_last = false; /* any newer frame may follow an outage; the anchor stays */
     }

@@ -7,7 +7,7 @@
  * This file adds what the generator does not: the CRC, the alive counter
  * checks, the dating of each frame by its counter (firmware_bridge/freshness.py:
  * stale = older than max_age_cycles, boundary included), the range check, and the watchdog that ramps the feedforward to zero
- * when frames stop. The rules match firmware_bridge/e2e.py (E2eReceiver) and
+ * when frames stop. The rules match firmware_bridge/profiles/e2e/receiver.py (E2eReceiver) and
  * firmware_bridge/supervisor.py (Supervisor) exactly; the tests feed both the
  * same vectors.
  */

@@ -19,9 +19,8 @@ from cantools.database.can import Message
 
 from gms_comp.errors import BusError
 
-from .freshness import COUNTER_MODULUS, FrameClock
-from .resources import packaged_path
-from .supervisor import RejectCounts, Supervisor, Verdict
+from ...freshness import COUNTER_MODULUS
+from ...resources import packaged_path
 
 CRC_BYTES = 2
 
@@ -60,11 +59,14 @@ def _crc_holds(data: bytes, data_id: int) -> bool:
 
 
 def default_dbc_path() -> Path:
+    """Path of the packaged feedforward DBC."""
     return packaged_path("gms_ff.dbc")
 
 
 @dataclass(frozen=True)
 class DriveStatus:
+    """The drive's status frame, decoded."""
+
     counter: int
     applied_current_A: float
     state: int
@@ -102,9 +104,11 @@ class E2eCodec:
         return round(current_A / self.scale_A)
 
     def from_raw(self, raw: int) -> float:
+        """The ``Current`` signal's raw value -> current in A."""
         return raw * self.scale_A
 
     def encode_command(self, counter: int, raw: int) -> bytes:
+        """FfCommand payload with ``counter`` (modulo 256), ``raw`` and its CRC."""
         data = self.command.encode(
             {"Crc": 0, "Counter": counter % COUNTER_MODULUS, "Current": raw},
             scaling=False,
@@ -113,6 +117,7 @@ class E2eCodec:
         return _with_crc(data, self.command_data_id)
 
     def command_frame(self, counter: int, raw: int) -> can.Message:
+        """FfCommand frame with ``counter`` and ``raw``."""
         return can.Message(
             arbitration_id=self.command.frame_id,
             data=self.encode_command(counter, raw),
@@ -132,6 +137,7 @@ class E2eCodec:
     def status_frame(
         self, counter: int, applied_raw: int, state: int, rejected: int
     ) -> can.Message:
+        """DriveStatus frame of the drive's cycle ``counter``."""
         data = self.status.encode(
             {
                 "Crc": 0,
@@ -150,6 +156,7 @@ class E2eCodec:
         )
 
     def check_status(self, data: bytes) -> DriveStatus | None:
+        """The decoded status of an intact DriveStatus payload, else None."""
         if len(data) != self.status.length or not _crc_holds(data, self.status_data_id):
             return None
         f = _decode_raw(self.status, data)
@@ -166,58 +173,3 @@ def _data_id(message: Message) -> int:
 def _decode_raw(message: Message, data: bytes) -> dict[str, int]:
     fields: Any = message.decode(data, scaling=False, decode_choices=False)
     return {name: int(value) for name, value in fields.items()}
-
-
-class E2eReceiver:
-    """The drive's side of the e2e profile: check, classify, apply, supervise.
-
-    A frame is applied only if its CRC holds, its value is in the DBC's range,
-    its counter is newer than the last accepted one and its age is within
-    ``max_age_cycles`` (see :mod:`firmware_bridge.freshness`, the one
-    definition of a stale frame). The first intact frame ever only sets the
-    counter reference.
-    """
-
-    RESYNC, ACTIVE, HOLD, FALLBACK = range(4)  # the DBC's DriveStatus.State values
-
-    def __init__(self, codec: E2eCodec, supervisor: Supervisor, max_age_cycles: int) -> None:
-        self.codec = codec
-        self.supervisor = supervisor
-        self.clock = FrameClock(max_age_cycles)
-        self.counts = RejectCounts()
-        self.fresh_raw: int | None = None
-        self.fresh_data: bytes | None = None
-
-    def on_frame(self, data: bytes) -> Verdict:
-        """Check one received FfCommand payload; returns (and counts) the verdict."""
-        verdict = self._classify(data)
-        self.counts.add(verdict)
-        return verdict
-
-    def _classify(self, data: bytes) -> Verdict:
-        checked = self.codec.check_command(data)
-        if checked is None:
-            return Verdict.CORRUPT
-        counter, raw = checked
-        verdict = self.clock.judge(counter)
-        if verdict is Verdict.ACCEPTED:
-            self.fresh_raw = raw
-            self.fresh_data = bytes(data)
-        return verdict
-
-    def tick(self) -> int:
-        """One drive cycle: apply the fresh value, if any; return the applied raw value."""
-        was_lost = self.supervisor.link_lost
-        out = self.supervisor.tick(self.fresh_raw)
-        self.fresh_raw = None
-        self.clock.tick()
-        if self.supervisor.link_lost and not was_lost:
-            self.clock.link_lost()
-        return out
-
-    @property
-    def state(self) -> int:
-        """The DBC's DriveStatus.State value of the receiver now."""
-        if self.supervisor.link_lost:
-            return self.FALLBACK if self.supervisor.output_raw else self.RESYNC
-        return self.ACTIVE if self.supervisor.cycles_since_fresh == 0 else self.HOLD

@@ -1,0 +1,166 @@
+"""The small interface every CAN profile implements.
+
+A :class:`Profile` makes the compensator's sending side (:class:`CompensatorTx`)
+and the drive's receiving side (:class:`DriveSide`) for a ``[can]`` section.
+The streamer, the drive emulator and the session use nothing else of a profile.
+"""
+
+from __future__ import annotations
+
+import importlib
+import threading
+from collections.abc import Callable
+from typing import Any, Protocol
+
+import can
+
+from gms_comp.errors import BusError
+
+from ..settings import CanConfig
+from ..supervisor import RejectCounts
+from . import PROFILES
+
+
+class SyncCounter:
+    """SYNCs seen on the bus, whoever produced them, with the latest bus timestamp."""
+
+    def __init__(self) -> None:
+        self.seen = 0
+        self.last_s = 0.0
+
+    def saw(self, timestamp_s: float) -> None:
+        """Count one SYNC received at ``timestamp_s`` (bus clock)."""
+        self.seen += 1
+        self.last_s = timestamp_s
+
+
+class CompensatorTx(Protocol):
+    """The compensator's side of a profile: what the streamer sends each cycle."""
+
+    target_ids: frozenset[int]
+    """Ids of the feedforward frames (what injected faults act on)."""
+    exclusive_ids: frozenset[int]
+    """Ids no other node may send while this compensator streams."""
+    self_checked: bool
+    """The feedforward frames carry their own CRC."""
+    limit_raw: int
+    """Largest magnitude sent, in the profile's raw unit."""
+    follows_sync: bool
+    """The compensator answers an NC's SYNC instead of pacing itself."""
+    sync: SyncCounter | None
+    """SYNCs seen, for a profile with SYNC; else None."""
+
+    def to_raw(self, current_A: float) -> int:
+        """Current in A -> the frame's raw unit (not saturated)."""
+        ...
+
+    def frames(self, cycle: int, raw: int) -> tuple[can.Message, list[can.Message]]:
+        """The feedforward frame of control cycle ``cycle`` and the other frames due with it."""
+        ...
+
+    def traffic(self) -> list[tuple[int, float]]:
+        """``(data bytes, frames per s)`` of every periodic frame of the profile."""
+        ...
+
+    def on_reply(self, msg: can.Message) -> None:
+        """Take note of a frame received from the bus (status, EMCY, heartbeat, SYNC)."""
+        ...
+
+    def report(self) -> dict[str, Any]:
+        """Profile-specific keys of the stream report."""
+        ...
+
+    def stop_frames(self) -> tuple[list[can.Message], str]:
+        """Frames that end a clean stream after the ramp to zero, and what they do."""
+        ...
+
+
+class DriveSide(Protocol):
+    """The drive's side of a profile: what the emulator (or a firmware) runs."""
+
+    @property
+    def counts(self) -> RejectCounts:
+        """Received frames by verdict."""
+        ...
+
+    def handle(self, msg: can.Message, now_s: float) -> None:
+        """Take one frame received at ``now_s``."""
+        ...
+
+    def tick(self, now_s: float, cycle: int) -> tuple[int, bytes | None]:
+        """Run drive cycle ``cycle`` at ``now_s``.
+
+        Returns
+        -------
+        tuple
+            The raw value applied in this cycle, and the payload of the frame
+            freshly applied in it (None if the value is held or ramping).
+        """
+        ...
+
+    def from_raw(self, raw: int) -> float:
+        """Raw unit -> current in A."""
+        ...
+
+    def state(self) -> str:
+        """The drive's state, for the report."""
+        ...
+
+    def emcy(self) -> list[str]:
+        """Emergency codes sent so far, as ``0xNNNN``."""
+        ...
+
+
+class Device(Protocol):
+    """Something that runs on its own clock in a thread (an NC producing SYNC)."""
+
+    def send(self) -> None:
+        """Send one period's frame now (stepped use)."""
+        ...
+
+    def run(self, stop: threading.Event, clock: Callable[[], float]) -> None:
+        """Run until ``stop`` is set."""
+        ...
+
+
+class Profile(Protocol):
+    """One way of carrying the feedforward to a drive."""
+
+    name: str
+
+    def make_tx(self, cfg: CanConfig) -> CompensatorTx:
+        """The compensator's sending side."""
+        ...
+
+    def make_drive(self, cfg: CanConfig, bus: can.BusABC) -> DriveSide:
+        """The drive's receiving side, on ``bus``."""
+        ...
+
+    def make_nc(self, cfg: CanConfig, bus: can.BusABC) -> Device | None:
+        """The NC's SYNC producer for a compensator that follows SYNC, else None."""
+        ...
+
+
+def get_profile(name: str) -> Profile:
+    """The registered profile ``name``.
+
+    Parameters
+    ----------
+    name
+        A key of :data:`firmware_bridge.profiles.PROFILES` (``[can] profile``).
+
+    Returns
+    -------
+    Profile
+        The ``PROFILE`` object of the profile's module.
+
+    Raises
+    ------
+    BusError
+        If no profile of that name is registered.
+    """
+    module = PROFILES.get(name)
+    if module is None:
+        raise BusError(f"unknown CAN profile {name!r} (known: {', '.join(PROFILES)})")
+    profile: Profile = importlib.import_module(module).PROFILE
+    return profile

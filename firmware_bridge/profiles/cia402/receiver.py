@@ -1,0 +1,194 @@
+"""The drive side of cia402: buffer RPDOs until SYNC, date them, supervise RPDO, SYNC, heartbeat."""
+
+from __future__ import annotations
+
+import can
+import canopen
+
+from ...freshness import FrameClock
+from ...settings import CanConfig, cycles_within
+from ...supervisor import RejectCounts, Supervisor, Verdict
+from .codec import (
+    ABORT_ACTIONS,
+    ABORT_CONNECTION_OPTION,
+    EMCY_HEARTBEAT,
+    EMCY_RPDO_TIMEOUT,
+    EMCY_SYNC_LOST,
+    HEARTBEAT_OPERATIONAL,
+    HEARTBEAT_PRE_OPERATIONAL,
+    NMT_ENTER_PRE_OPERATIONAL,
+    NMT_START,
+    NMT_STOP,
+    PRODUCER_HEARTBEAT,
+    RPDO1_COMM,
+    TORQUE_OFFSET,
+    Cia402Codec,
+    read_object,
+    write_object,
+)
+
+
+class Cia402Receiver:
+    """The drive side: buffer RPDOs until SYNC, supervise RPDO, SYNC and heartbeat."""
+
+    def __init__(
+        self,
+        node: canopen.LocalNode,
+        codec: Cia402Codec,
+        cfg: CanConfig,
+        limit_raw: int,
+    ) -> None:
+        self.node = node
+        self.codec = codec
+        self.cycle_period_s = cfg.cycle_period_s
+        self.counts = RejectCounts()
+        event_timer_s = read_object(node, RPDO1_COMM, 5) * 1e-3
+        self.supervisor = Supervisor(
+            limit_raw, cycles_within(event_timer_s, cfg.cycle_period_s), cfg.ramp_cycles
+        )
+        self.sync_timeout_s = 1.5 * read_object(node, 0x1006) * 1e-6
+        consumer = read_object(node, 0x1016, 1)
+        self.heartbeat_producer = 0x700 + ((consumer >> 16) & 0x7F)
+        self.heartbeat_timeout_s = (consumer & 0xFFFF) * 1e-3
+        self.clock = FrameClock(cfg.max_frame_age_cycles)
+        self.window: list[bytes] = []
+        self.fresh: tuple[int, bytes] | None = None
+        self.applied_data: bytes | None = None
+        self.last_sync_s: float | None = None
+        self.last_heartbeat_s: float | None = None
+        self.active_faults: set[int] = set()
+        self.emcy_sent: list[int] = []
+        self.heartbeats_sent = 0
+        self._next_heartbeat_s: float | None = None
+        self.out_of_operation = False  # taken out of operation by NMT: no PDO, no supervision
+
+    def on_message(self, msg: can.Message, now_s: float) -> None:
+        """Take one frame received at ``now_s``: RPDO, SYNC, heartbeat, NMT, SDO."""
+        cob_id = msg.arbitration_id
+        if msg.is_error_frame:
+            self.counts.add(Verdict.CORRUPT)  # the controller's CRC caught a damaged frame
+        elif cob_id == self.codec.rpdo_cob_id:
+            if self.codec.unpack_rpdo(bytes(msg.data)) is not None:
+                self.window.append(bytes(msg.data))
+            else:
+                self.counts.add(Verdict.CORRUPT)
+        elif cob_id == self.codec.sync_cob_id:
+            self.last_sync_s = now_s
+            self._close_window()
+        elif cob_id == self.heartbeat_producer:
+            self.last_heartbeat_s = now_s
+        elif cob_id == 0x000 and len(msg.data) == 2:
+            self._on_nmt(msg.data[0], msg.data[1])
+            self.node.network.notify(cob_id, msg.data, msg.timestamp)
+        else:  # SDO, NMT: the canopen LocalNode answers
+            self.node.network.notify(cob_id, msg.data, msg.timestamp)
+
+    def _close_window(self) -> None:
+        """At SYNC: judge the window's RPDOs in arrival order; the newest fresh one wins.
+
+        Frames are dated in drive cycles, which run on time whether SYNC comes
+        or not; the compensator numbers its frames by the same time slots (as
+        SYNC follower: the slot of the SYNC it answers).
+        """
+        window, self.window = self.window, []
+        for data in window:
+            unpacked = self.codec.unpack_rpdo(data)
+            assert unpacked is not None  # checked on arrival
+            raw, counter = unpacked
+            verdict = self.clock.judge(counter)
+            self.counts.add(verdict)
+            if verdict is Verdict.ACCEPTED:
+                self.fresh = (raw, data)
+
+    def _on_nmt(self, command: int, node_id: int) -> None:
+        """An orderly stop (pre-operational, stopped) ends PDOs and their supervision."""
+        if node_id not in (0, self.node.id):
+            return
+        if command in (NMT_ENTER_PRE_OPERATIONAL, NMT_STOP):
+            self.out_of_operation = True
+            self.active_faults.clear()
+            self.window = []
+        elif command == NMT_START:
+            self.out_of_operation = False
+            self.last_sync_s = self.last_heartbeat_s = None
+
+    def tick(self, now_s: float) -> int:
+        """One drive cycle at time ``now_s``; returns the applied 0x60B2 value."""
+        if self.out_of_operation:  # no PDO applied, nothing supervised, output to zero
+            self.fresh = self.applied_data = None
+            out = self.supervisor.tick(None)
+            self.clock.tick()
+            write_object(self.node, TORQUE_OFFSET, None, out)
+            self._produce_heartbeat(now_s)
+            return out
+        self._supervise(now_s)
+        # a lost SYNC or heartbeat voids the link; a lost RPDO ends with the next one
+        fresh = None if self.active_faults - {EMCY_RPDO_TIMEOUT} else self.fresh
+        self.fresh = None
+        was_lost = self.supervisor.link_lost
+        out = self.supervisor.tick(fresh[0] if fresh else None)
+        self.applied_data = fresh[1] if fresh else None
+        self.clock.tick()
+        if self.supervisor.link_lost and not was_lost:
+            self.clock.link_lost()
+            self._raise_fault(EMCY_RPDO_TIMEOUT)
+        elif fresh:
+            self.active_faults.discard(EMCY_RPDO_TIMEOUT)
+        write_object(self.node, TORQUE_OFFSET, None, out)
+        self._produce_heartbeat(now_s)
+        return out
+
+    def _produce_heartbeat(self, now_s: float) -> None:
+        """The drive's own heartbeat, every 0x1017 ms (0 disables it), read each time
+        because the NC may change it by SDO."""
+        period_s = read_object(self.node, PRODUCER_HEARTBEAT) * 1e-3
+        if period_s <= 0:
+            self._next_heartbeat_s = None
+            return
+        if self._next_heartbeat_s is None or now_s >= self._next_heartbeat_s:
+            cob_id = 0x700 + int(self.node.id or 0)
+            state = HEARTBEAT_PRE_OPERATIONAL if self.out_of_operation else HEARTBEAT_OPERATIONAL
+            self.node.network.send_message(cob_id, bytes([state]))
+            self.heartbeats_sent += 1
+            self._next_heartbeat_s = now_s + period_s - 1e-9
+
+    def _supervise(self, now_s: float) -> None:
+        if self._overdue(self.last_sync_s, self.sync_timeout_s, now_s):
+            self._raise_fault(EMCY_SYNC_LOST)
+            # the SYNC these RPDOs waited for did not come in time: stale once it does
+            for _ in self.window:
+                self.counts.add(Verdict.STALE)
+            self.window = []
+        else:
+            self.active_faults.discard(EMCY_SYNC_LOST)
+        if self._overdue(self.last_heartbeat_s, self.heartbeat_timeout_s, now_s):
+            self._raise_fault(EMCY_HEARTBEAT)
+        else:
+            self.active_faults.discard(EMCY_HEARTBEAT)
+
+    @staticmethod
+    def _overdue(last_s: float | None, timeout_s: float, now_s: float) -> bool:
+        # before the first message there is nothing to supervise yet
+        return last_s is not None and now_s - last_s > timeout_s
+
+    def _raise_fault(self, code: int) -> None:
+        if code in self.active_faults:
+            return
+        self.active_faults.add(code)
+        self.emcy_sent.append(code)
+        self.node.emcy.send(code, register=0x11)  # error register: generic + communication
+
+    @property
+    def abort_action(self) -> str:
+        """Drive reaction to a lost link, from 0x6007 (the offset ramps to zero in any case)."""
+        return ABORT_ACTIONS.get(read_object(self.node, ABORT_CONNECTION_OPTION), "manufacturer")
+
+    @property
+    def state(self) -> str:
+        """``operation_enabled``, ``waiting`` (no feedforward yet or link lost without a
+        fault), ``pre_operational`` (stopped in order by NMT) or the 0x6007 reaction."""
+        if self.out_of_operation:
+            return "pre_operational"
+        if self.active_faults or self.supervisor.link_lost:
+            return self.abort_action if self.active_faults else "waiting"
+        return "operation_enabled"

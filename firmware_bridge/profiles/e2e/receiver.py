@@ -1,0 +1,65 @@
+"""The drive side of e2e: check CRC and range, date by the alive counter, apply, supervise.
+
+``firmware_bridge/c/ff_handler.c`` implements the same rules for the firmware.
+"""
+
+from __future__ import annotations
+
+from ...freshness import FrameClock
+from ...supervisor import RejectCounts, Supervisor, Verdict
+from .codec import E2eCodec
+
+
+class E2eReceiver:
+    """The drive's side of the e2e profile: check, classify, apply, supervise.
+
+    A frame is applied only if its CRC holds, its value is in the DBC's range,
+    its counter is newer than the last accepted one and its age is within
+    ``max_age_cycles`` (see :mod:`firmware_bridge.freshness`, the one
+    definition of a stale frame). The first intact frame ever only sets the
+    counter reference.
+    """
+
+    RESYNC, ACTIVE, HOLD, FALLBACK = range(4)  # the DBC's DriveStatus.State values
+
+    def __init__(self, codec: E2eCodec, supervisor: Supervisor, max_age_cycles: int) -> None:
+        self.codec = codec
+        self.supervisor = supervisor
+        self.clock = FrameClock(max_age_cycles)
+        self.counts = RejectCounts()
+        self.fresh_raw: int | None = None
+        self.fresh_data: bytes | None = None
+
+    def on_frame(self, data: bytes) -> Verdict:
+        """Check one received FfCommand payload; returns (and counts) the verdict."""
+        verdict = self._classify(data)
+        self.counts.add(verdict)
+        return verdict
+
+    def _classify(self, data: bytes) -> Verdict:
+        checked = self.codec.check_command(data)
+        if checked is None:
+            return Verdict.CORRUPT
+        counter, raw = checked
+        verdict = self.clock.judge(counter)
+        if verdict is Verdict.ACCEPTED:
+            self.fresh_raw = raw
+            self.fresh_data = bytes(data)
+        return verdict
+
+    def tick(self) -> int:
+        """One drive cycle: apply the fresh value, if any; return the applied raw value."""
+        was_lost = self.supervisor.link_lost
+        out = self.supervisor.tick(self.fresh_raw)
+        self.fresh_raw = None
+        self.clock.tick()
+        if self.supervisor.link_lost and not was_lost:
+            self.clock.link_lost()
+        return out
+
+    @property
+    def state(self) -> int:
+        """The DBC's DriveStatus.State value of the receiver now."""
+        if self.supervisor.link_lost:
+            return self.FALLBACK if self.supervisor.output_raw else self.RESYNC
+        return self.ACTIVE if self.supervisor.cycles_since_fresh == 0 else self.HOLD
