@@ -175,3 +175,19 @@ def test_ctrl_c_is_one_line_and_exit_130(delay_s: float) -> None:
     lines = result.stderr.strip().splitlines()
     # Before the arguments are parsed the CLI does not know the subcommand yet.
     assert lines in (["gms-comp: interrupted"], ["gms-comp bench: interrupted"]), lines
+
+
+def test_closed_stdout_is_quiet() -> None:
+    """``gms-comp ... | head``: the reader going away is no traceback."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gms_comp", "config", "--markdown"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()  # before the command writes anything
+    err = proc.stderr.read()
+    assert proc.wait(timeout=120) == 1
+    assert "Traceback" not in err and "BrokenPipe" not in err, err
