@@ -173,8 +173,10 @@ def test_ctrl_c_is_one_line_and_exit_130(delay_s: float) -> None:
     assert result.returncode == 130, result.stderr
     assert "Traceback" not in result.stderr
     lines = result.stderr.strip().splitlines()
-    # Before the arguments are parsed the CLI does not know the subcommand yet.
-    assert lines in (["gms-comp: interrupted"], ["gms-comp bench: interrupted"]), lines
+    # Before the arguments are parsed the CLI does not know the subcommand yet; once
+    # running, bench has said on stderr what it measures.
+    assert lines[-1] in ("gms-comp: interrupted", "gms-comp bench: interrupted"), lines
+    assert all(line.startswith("measuring") for line in lines[:-1]), lines
 
 
 def test_closed_stdout_is_quiet() -> None:
@@ -191,3 +193,11 @@ def test_closed_stdout_is_quiet() -> None:
     err = proc.stderr.read()
     assert proc.wait(timeout=120) == 1
     assert "Traceback" not in err and "BrokenPipe" not in err, err
+
+
+def test_bench_json_is_stdout_only(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "--quick", "--json"]) == 0
+    captured = capsys.readouterr()
+    data = json.loads(captured.out)["gms"]
+    assert data["batch_samples_per_s"] > 0 and data["elements"] == 16
+    assert captured.err.startswith("measuring")  # progress on stderr
