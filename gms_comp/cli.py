@@ -5,7 +5,7 @@ Each subcommand lives in ``gms_comp.commands.<name>`` and exposes
 taking the parsed namespace and returning the exit code. Bad input raised as
 :class:`~gms_comp.errors.GmsCompError` becomes one line on stderr and exit code 2;
 Ctrl-C, wherever it lands (importing the subcommands, parsing, running), one line
-and exit code 130.
+and exit code 130; a closed stdout (``| head``) ends the run quietly with exit code 1.
 
 Every subcommand follows one convention: ``--json`` prints the result as JSON on
 stdout and nothing else there; without it a short human summary goes to stdout.
@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
@@ -69,7 +70,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"{command}: interrupted", file=sys.stderr)
         return INTERRUPTED
+    except BrokenPipeError:  # the reader of stdout went away (`gms-comp ... | head`)
+        _silence_stdout()
+        return 1
     return code
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so that the interpreter's final flush does not fail again."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
 
 
 if __name__ == "__main__":  # pragma: no cover

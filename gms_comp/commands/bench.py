@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from collections.abc import Callable
 from typing import Any
@@ -130,12 +131,15 @@ def register(subparsers: Any) -> None:
         help="measure the speed of the GMS model",
         description="Batch throughput, streaming step latency and the solve_ivp ratio.",
     )
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--json", action="store_true", help="print one JSON object on stdout only")
     parser.add_argument("--quick", action="store_true", help="shorter runs (less precise)")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    """Measure and print the figures (JSON on stdout only with ``--json``)."""
+    length = "a few seconds" if args.quick else "a minute or more; --quick for a short run"
+    print(f"measuring the GMS kernel ({length})", file=sys.stderr, flush=True)
     result = measure(quick=args.quick)
     if args.json:
         print(json.dumps(result))

@@ -7,12 +7,13 @@ import dataclasses
 import json
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 from ..config import load_ball_config
 from ..reduction import load_table_config, reduce_to_gms
 from ..table import write_table
-from ..validation import input_file, output_file
+from ..validation import output_file
 
 # The [table] elements range of the config (gms_comp.reduction.TableConfig).
 MAX_ELEMENTS = 1024
@@ -50,7 +51,7 @@ def register(subparsers: Any) -> None:
         ),
     )
     parser.add_argument(
-        "config", nargs="?", type=input_file, help="config TOML (default: the seed's Table 1)"
+        "config", nargs="?", type=Path, help="config TOML (default: the seed's Table 1)"
     )
     parser.add_argument(
         "-o", "--output", type=output_file, required=True, help="table file to write (JSON)"
