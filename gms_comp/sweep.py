@@ -52,6 +52,8 @@ MANIFEST = "manifest.json"
 FAMILY_FORMAT = "gms-comp-family"
 FAMILY_VERSION = 1
 MANIFEST_INTERVAL_S = 2.0
+#: Elements of each table of a sweep (``[sweep] elements``).
+MAX_SWEEP_ELEMENTS = 256
 
 
 @dataclass(frozen=True)
@@ -97,9 +99,15 @@ def load_sweep(path: str | Path) -> SweepSpec:
     else:
         raise ConfigError(str(p), "sweep.base_config", f"must be a path string, got {base!r}")
     elements = sweep.get("elements", 16)
-    if isinstance(elements, bool) or not isinstance(elements, int) or not 1 <= elements <= 256:
+    if (
+        isinstance(elements, bool)
+        or not isinstance(elements, int)
+        or not 1 <= elements <= MAX_SWEEP_ELEMENTS
+    ):
         raise ConfigError(
-            str(p), "sweep.elements", f"must be an integer in [1, 256], got {elements!r}"
+            str(p),
+            "sweep.elements",
+            f"must be an integer in [1, {MAX_SWEEP_ELEMENTS}], got {elements!r}",
         )
     axes = sweep.get("axes")
     if not isinstance(axes, dict) or not axes:

@@ -58,15 +58,24 @@ UNITS = {
 _VERSION = re.compile(r"^(\d+)\.(\d+)\.(\d+)")
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
-#: Upper bounds of a table's numbers: far above any linear guide, low enough that the
-#: observer's arithmetic (k_i z_i, sums over elements) stays finite.
+# Upper bounds of a table's numbers: far above any linear guide, low enough that the
+# observer's arithmetic (k_i z_i, sums over elements) stays finite.
+#: Element stiffness k_i of a table, N/m.
 MAX_STIFFNESS_N_PER_M = 1e12
+#: Element limit W_i and load-family loads of a table, N.
 MAX_FORCE_N = 1e6
+#: Viscous coefficient of a table, N s/m.
 MAX_VISCOUS_NS_PER_M = 1e7
+#: Slip level s of a table.
 MAX_SLIP_LEVEL = 10.0
+#: Transition velocity of a table's velocity level, m/s.
 MAX_TRANSITION_VELOCITY_M_S = 1.0
+#: Transition exponent of a table's velocity level.
 MAX_TRANSITION_EXPONENT = 10.0
+#: Attraction rate of a table, 1/s (null means infinite: Maxwell-slip).
 MAX_ATTRACTION_RATE_PER_S = 1e9
+#: Model extensions (catalogue effects) of a table.
+MAX_EXTENSIONS = 64
 
 
 @dataclass(frozen=True)
@@ -323,7 +332,9 @@ class _Reader:
         items = doc.get("extensions", [])
         if not isinstance(items, list):
             raise self.error("extensions", "must be a list")
-        check_count(self.where, "extensions", len(items), 64, "extensions", error=TableError)
+        check_count(
+            self.where, "extensions", len(items), MAX_EXTENSIONS, "extensions", error=TableError
+        )
         out = []
         for i, item in enumerate(items):
             key = f"extensions.{i}"

@@ -48,9 +48,11 @@ EMPS_MAPPING: Mapping[str, str] = {
     "reference_position_m": "qg",
 }
 
-# Plausibility limits behind the unit-slip warnings: no linear axis this tool serves has
+# Plausibility limits behind the unit-slip refusals: no linear axis this tool serves has
 # a stroke above a few metres or a speed above tens of m/s.
+#: Stroke of a trace's position_m column (more looks like mm or um), m.
 MAX_PLAUSIBLE_STROKE_M = 5.0
+#: Speed in a trace's velocity_m_s column (more looks like mm/s), m/s.
 MAX_PLAUSIBLE_SPEED_M_S = 20.0
 # A trace whose position never moves more than this has no motion to analyse.
 MIN_MOTION_M = 1e-9

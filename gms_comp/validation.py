@@ -96,12 +96,24 @@ def decode_utf8(data: bytes, source: str, *, error: ErrorType = InputError) -> s
     return text
 
 
+_STRUCTURE = re.compile(r"""[\[\]{}"'#\n\\]""")
+
+
 def nesting_depth(text: str) -> int:
-    """Deepest nesting of ``[``/``{`` outside strings and comments (TOML and JSON)."""
+    """Deepest nesting of ``[``/``{`` outside strings and comments (TOML and JSON).
+
+    Only the structural characters are visited (a regular expression finds them), so a
+    10 MB document of numbers is measured in milliseconds.
+    """
     depth = deepest = 0
     quote = ""
     escaped = comment = False
-    for ch in text:
+    last = -2
+    for match in _STRUCTURE.finditer(text):
+        ch, at = match.group(), match.start()
+        if escaped and at != last + 1:
+            escaped = False  # the backslash escaped an ordinary character
+        last = at
         if comment:
             comment = ch != "\n"
         elif quote:

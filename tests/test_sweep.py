@@ -146,3 +146,69 @@ def test_sweep_command_writes_a_manifest(
     manifest = json.loads(capsys.readouterr().out)
     assert code == 1  # one point is invalid: the run says so
     assert [p["status"] for p in manifest["points"]] == ["invalid", "ok"]
+
+
+def test_grid_over_the_cap_is_refused_before_it_is_built(tmp_path: Path) -> None:
+    values = ", ".join(f"{1e-3 + i * 1e-7:.7g}" for i in range(2000))
+    axes = "\n".join(
+        f'"{key}" = [{values}]'
+        for key in (
+            "bearing.friction_coefficient",
+            "stand.carriage_velocity_m_s",
+            "stand.rolling_distance_per_travel",
+        )
+    )
+    with pytest.raises(ConfigError) as info:
+        load_sweep(_sweep_file(tmp_path, axes))
+    assert info.value.key == "sweep.axes"
+    assert "8e+09 points, more than the 10000" in str(info.value)
+
+
+def test_scaleout_section_resolves_tls_files_beside_the_sweep_file(tmp_path: Path) -> None:
+    for name in ("ca.pem", "me.pem", "me.key"):
+        (tmp_path / "certs").mkdir(exist_ok=True)
+        (tmp_path / "certs" / name).write_text("-")
+    path = _sweep_file(tmp_path, f'"stand.ball_loads_N" = {LOADS}')
+    section = (
+        '\n[scaleout]\nscheduler = "tls://10.1.2.3:8786"\ntls_ca_file = "certs/ca.pem"\n'
+        'tls_cert = "certs/me.pem"\ntls_key = "certs/me.key"\n'
+    )
+    path.write_text(path.read_text() + section)
+    spec = load_sweep(path)
+    assert spec.scaleout.scheduler == "tls://10.1.2.3:8786"
+    assert Path(spec.scaleout.tls_key) == (tmp_path / "certs" / "me.key").resolve()
+    path.write_text(path.read_text().replace("me.key", "gone.key"))
+    with pytest.raises(ConfigError) as info:
+        load_sweep(path)
+    assert info.value.key == "scaleout.tls_key"
+    path.write_text(path.read_text().replace("tls://10.1.2.3:8786", "not a url"))
+    with pytest.raises(ConfigError) as info:
+        load_sweep(path)
+    assert info.value.key == "scaleout.scheduler"
+
+
+def test_two_sweeps_into_one_folder_do_not_race(tmp_path: Path) -> None:
+    """Both runs write the same manifest and point files at once: with unique temporary
+    names neither fails, and what is left is complete and readable."""
+    import threading
+
+    spec = load_sweep(_sweep_file(tmp_path, '"stand.ball_loads_N" = [40.0]', elements=2))
+    errors: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            run_sweep(spec, tmp_path / "fam")
+        except BaseException as err:  # collected for the assertion
+            errors.append(err)
+
+    threads = [threading.Thread(target=run) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors
+    manifest = json.loads((tmp_path / "fam" / "manifest.json").read_text())
+    assert [p["status"] for p in manifest["points"]] == ["ok"]
+    assert read_table(tmp_path / "fam" / "points" / "0000.json").n_elements == 2
+    leftovers = [p.name for p in (tmp_path / "fam").rglob("*.tmp*")]
+    assert leftovers == []

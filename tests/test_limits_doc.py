@@ -1,0 +1,133 @@
+"""docs/limits.md lists every bound gms-comp enforces on its input; this test keeps it true.
+
+The document is generated from the code: the range metadata of every config
+section's fields and the caps (``MAX_*``/``MIN_*`` constants, documented with ``#:``
+comments) of the modules that check untrusted input. When a bound changes, rewrite it:
+
+    python tests/test_limits_doc.py
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import math
+import re
+import sys
+import typing
+from pathlib import Path
+from typing import Any
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "limits.md"
+
+SECTIONS = (
+    ("bearing", "gms_comp.config", "BearingConfig"),
+    ("stand", "gms_comp.config", "StandConfig"),
+    ("model", "gms_comp.config", "ModelConfig"),
+    ("table", "gms_comp.reduction", "TableConfig"),
+    ("compensator", "gms_comp.observer", "CompensatorConfig"),
+    ("plant", "sim.plant", "PlantConfig"),
+    ("controller", "sim.controller", "ControllerConfig"),
+    ("scenario", "sim.scenarios", "ScenarioConfig"),
+    ("can", "firmware_bridge.settings", "CanConfig"),
+    ("diagnosis", "gms_comp.diagnosis.run", "DiagnosisConfig"),
+    ("scaleout", "gms_comp.scaleout", "ScaleoutConfig"),
+)
+CAP_MODULES = (
+    "gms_comp.validation",
+    "gms_comp.config",
+    "gms_comp.contact",
+    "gms_comp.table",
+    "gms_comp.traces",
+    "gms_comp.sweep",
+)
+_CAP = re.compile(r"((?:^#:.*\n)+)^((?:MAX|MIN)_[A-Z0-9_]+)\s*=", re.MULTILINE)
+
+
+def _number(value: float) -> str:
+    if isinstance(value, int):
+        return f"{value:,}".replace(",", " ")
+    if math.isinf(value):
+        return "inf"
+    return f"{value:g}"
+
+
+def _range(f: dataclasses.Field[Any], hint: Any) -> str:
+    if typing.get_origin(hint) is typing.Literal:
+        return "one of " + ", ".join(f"`{c}`" for c in typing.get_args(hint))
+    bounds = f.metadata.get("range")
+    if bounds is None:
+        return "any" if hint in (str, bool) else "checked in code"
+    lo, hi, lower, upper = bounds
+    text = f"{lower}{_number(lo)}, {_number(hi)}{upper}"
+    if f.metadata.get("max_items"):
+        text += f", at most {f.metadata['max_items']} entries"
+    return text
+
+
+def _default(f: dataclasses.Field[Any]) -> str:
+    if f.default is not dataclasses.MISSING:
+        return f"`{f.default!r}`"
+    if f.default_factory is not dataclasses.MISSING:
+        return f"`{f.default_factory()!r}`"
+    return "required"
+
+
+def render() -> str:
+    """The whole of docs/limits.md, from the code."""
+    out = [
+        "# Limits: every bound on gms-comp's input",
+        "",
+        "Generated from the code by `python tests/test_limits_doc.py`; a test fails when the",
+        "code and this page differ. A value outside its range, a file or count over its cap",
+        "is refused before any work, with one line naming the file, the key or row and the",
+        "reason, and exit code 2. Ranges are inclusive unless the bracket is round.",
+        "",
+        "## Config keys",
+        "",
+        "| key | type | default | allowed |",
+        "|---|---|---|---|",
+    ]
+    for section, module, name in SECTIONS:
+        cls = getattr(importlib.import_module(module), name)
+        hints = typing.get_type_hints(cls)
+        for f in dataclasses.fields(cls):
+            kind = getattr(hints[f.name], "__name__", str(hints[f.name]))
+            kind = str(hints[f.name]) if "[" in str(hints[f.name]) else kind
+            kind = kind.replace("typing.", "")
+            out.append(
+                f"| `{section}.{f.name}` | {kind} | {_default(f)} | {_range(f, hints[f.name])} |"
+            )
+    out += [
+        "",
+        "## Caps on files, counts and models",
+        "",
+        "| cap | value | what |",
+        "|---|---|---|",
+    ]
+    for module in CAP_MODULES:
+        mod = importlib.import_module(module)
+        source = Path(str(mod.__file__)).read_text(encoding="utf-8")
+        for comment, const in _CAP.findall(source):
+            what = " ".join(line.removeprefix("#:").strip() for line in comment.splitlines())
+            out.append(f"| `{module}.{const}` | {_number(getattr(mod, const))} | {what} |")
+    return "\n".join(out) + "\n"
+
+
+def test_limits_doc_matches_the_code() -> None:
+    assert DOC.is_file(), "docs/limits.md is missing: run python tests/test_limits_doc.py"
+    assert DOC.read_text(encoding="utf-8") == render(), (
+        "docs/limits.md is out of date: run python tests/test_limits_doc.py"
+    )
+
+
+def test_every_known_section_is_listed() -> None:
+    from gms_comp.config import KNOWN_SECTIONS
+
+    assert {s for s, _, _ in SECTIONS} == set(KNOWN_SECTIONS)
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(DOC.parents[1]))
+    DOC.write_text(render(), encoding="utf-8")
+    print(f"wrote {DOC}")
