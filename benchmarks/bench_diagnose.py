@@ -23,8 +23,8 @@ import sys
 import time
 from typing import Any
 
-from gms_comp.commands.demo_trace import HIDDEN_CHOICES, MAIN_PARAMETER, generate
-from gms_comp.diagnosis.run import diagnose
+from gms_comp.app.commands.demo_trace import HIDDEN_CHOICES, MAIN_PARAMETER, generate
+from gms_comp.measured.diagnosis.run import diagnose
 
 # The relative tolerances the tests state (tests/test_diagnosis.py).
 TOLERANCE = {

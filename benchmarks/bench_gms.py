@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 import sys
 
-from gms_comp.commands.bench import measure
+from gms_comp.app.commands.bench import measure
 
 if __name__ == "__main__":
     print(json.dumps(measure(quick="--quick" in sys.argv[1:]), indent=1))

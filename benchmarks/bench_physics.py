@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from gms_comp import ball_model
 from gms_comp.config import BallConfig, load_ball_config
-from gms_comp.profiles import seed_fig7_profile
-from gms_comp.transient import BallSetFriction
+from gms_comp.physics import ball_model
+from gms_comp.physics.profiles import seed_fig7_profile
+from gms_comp.physics.transient import BallSetFriction
 
 
 def best_of(fn: Callable[[], Any], repeat: int = 3) -> tuple[float, Any]:

@@ -1,6 +1,6 @@
 """Speed of the replay of a measured closed-loop run (issue 14); prints one JSON object.
 
-Times :func:`gms_comp.replay.replay` alone (the record and model loaded beforehand, the
+Times :func:`gms_comp.app.replay.replay` alone (the record and model loaded beforehand, the
 numba kernel compiled by a first call): one 24 841-sample EMPS record, 10 RK4 sub-steps
 per cycle, best of ``--repeats``, for the benchmark's reference model and, with
 ``--model``, a GMS table. Target: at most 5 s.
@@ -16,7 +16,7 @@ import math
 import time
 from pathlib import Path
 
-from gms_comp import replay
+from gms_comp.app import replay
 
 DEFAULT_TRACE = next(
     (

@@ -25,12 +25,12 @@ from typing import Any
 
 import numpy as np
 
-from gms_comp.commands.demo_trace import generate
+from gms_comp.app.commands.demo_trace import generate
+from gms_comp.app.fleet import FleetJob, diagnose_fleet, diagnose_one
+from gms_comp.app.scaleout import dask_client
+from gms_comp.app.sweep import load_sweep, run_sweep
 from gms_comp.config import default_config_path
-from gms_comp.fleet import FleetJob, diagnose_fleet, diagnose_one
-from gms_comp.scaleout import dask_client
-from gms_comp.sweep import load_sweep, run_sweep
-from gms_comp.traces import write_trace
+from gms_comp.measured.traces import write_trace
 
 NIGHT_S = 10 * 3600.0
 
@@ -62,7 +62,7 @@ def _fleet_traces(folder: Path, n: int, samples: int) -> list[FleetJob]:
 
 def _warm(_: int) -> int:
     from gms_comp.config import load_ball_config
-    from gms_comp.reduction import reduce_to_gms
+    from gms_comp.tables.reduction import reduce_to_gms
 
     reduce_to_gms(load_ball_config(), 4)
     return 0

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from firmware_bridge.session import run_stream
 from firmware_bridge.settings import load_can_config
-from gms_comp.commands.stream import gms_observer_source
+from gms_comp.app.commands.stream import gms_observer_source
 from gms_comp.config import default_config_path
 
 TARGET_P99_S = 200e-6

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import can
 
+from firmware_bridge.settings import CanConfig
 from gms_comp.errors import BusError
-
-from .settings import CanConfig
 
 VCAN_HINT = "create one with: ip link add dev vcan0 type vcan && ip link set up vcan0"
 

@@ -35,13 +35,12 @@ from typing import Any
 
 import can
 
+from firmware_bridge.bus import open_bus
+from firmware_bridge.profiles import PROFILES
+from firmware_bridge.profiles.base import DriveSide, get_profile
+from firmware_bridge.settings import CanConfig, load_can_config
+from firmware_bridge.supervisor import RejectCounts, Verdict
 from gms_comp.errors import BusError, GmsCompError
-
-from .bus import open_bus
-from .profiles import PROFILES
-from .profiles.base import DriveSide, get_profile
-from .settings import CanConfig, load_can_config
-from .supervisor import RejectCounts, Verdict
 
 
 class DriveEmulator:

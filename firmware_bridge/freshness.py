@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .supervisor import Verdict
+from firmware_bridge.supervisor import Verdict
 
 COUNTER_MODULUS = 256
 AGE_TOLERANCE_CYCLES = 1e-6

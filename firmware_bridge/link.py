@@ -18,9 +18,9 @@ from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
 
-from .faults import Fault
-from .session import Rig
-from .settings import CanConfig, ProfileName
+from firmware_bridge.faults import Fault
+from firmware_bridge.session import Rig
+from firmware_bridge.settings import CanConfig, ProfileName
 
 _instances = itertools.count()
 

@@ -24,21 +24,20 @@ from typing import Any
 import can
 import numpy as np
 
-from gms_comp.errors import BusError
-
-from .bus import open_bus
-from .busload import check_bus_load
-from .emulator import DriveEmulator
-from .faults import Fault, FaultyBus
-from .profiles.base import CompensatorTx, Device, SyncCounter, get_profile
-from .settings import CanConfig
-from .streamer import (
+from firmware_bridge.bus import open_bus
+from firmware_bridge.busload import check_bus_load
+from firmware_bridge.emulator import DriveEmulator
+from firmware_bridge.faults import Fault, FaultyBus
+from firmware_bridge.profiles.base import CompensatorTx, Device, SyncCounter, get_profile
+from firmware_bridge.settings import CanConfig
+from firmware_bridge.streamer import (
     Streamer,
     check_channel_free,
     count_unsent_applied,
     make_tx,
     profile_bus_load,
 )
+from gms_comp.errors import BusError
 
 FeedforwardSource = Callable[[float], float]  # time in s -> feedforward current in A
 CHANNEL_CHECK_S = 0.02  # listen this long (at least 10 cycles) for another compensator

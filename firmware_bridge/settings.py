@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from firmware_bridge.profiles import PROFILES
 from gms_comp.config import (
     default_config_path,
     in_range,
@@ -18,8 +19,6 @@ from gms_comp.config import (
     positive,
     read_toml,
 )
-
-from .profiles import PROFILES
 
 MIN_CYCLE_S = 1e-4  # 10 kHz: beyond what classic CAN carries, and the loop's time budget
 ProfileName = str  # a key of firmware_bridge.profiles.PROFILES

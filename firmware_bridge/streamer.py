@@ -16,13 +16,12 @@ from typing import Protocol
 
 import can
 
+from firmware_bridge.busload import bus_load
+from firmware_bridge.freshness import AGE_TOLERANCE_CYCLES, is_fresh
+from firmware_bridge.profiles.base import CompensatorTx, get_profile
+from firmware_bridge.settings import CanConfig
+from firmware_bridge.supervisor import saturate, toward_zero
 from gms_comp.errors import BusError
-
-from .busload import bus_load
-from .freshness import AGE_TOLERANCE_CYCLES, is_fresh
-from .profiles.base import CompensatorTx, get_profile
-from .settings import CanConfig
-from .supervisor import saturate, toward_zero
 
 
 def make_tx(cfg: CanConfig) -> CompensatorTx:

@@ -3,7 +3,7 @@
 import sys
 
 try:
-    from .cli import main
+    from gms_comp.app.cli import main
 except KeyboardInterrupt:  # Ctrl-C while the interpreter imports the CLI
     print("gms-comp: interrupted", file=sys.stderr)
     sys.exit(130)

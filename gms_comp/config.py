@@ -24,8 +24,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
-from .errors import ConfigError
-from .validation import MAX_BALL_LOADS, read_toml_document
+from gms_comp.errors import ConfigError
+from gms_comp.validation import MAX_BALL_LOADS, read_toml_document
 
 KNOWN_SECTIONS = frozenset(
     {

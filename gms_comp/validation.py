@@ -26,7 +26,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from .errors import ConfigError, InputError
+from gms_comp.errors import ConfigError, InputError
 
 #: A config or sweep file larger than this is refused before it is parsed.
 MAX_CONFIG_BYTES = 4 << 20

@@ -17,18 +17,17 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from gms_comp.observer import (
+from gms_comp.runtime.observer import (
     ForceModel,
     FrictionObserver,
     adapt_level,
     feedforward_current,
 )
-
-from .controller import MEASURED_VELOCITY, CascadeController, controller_step
-from .link import DirectLink, FeedforwardLink, delayed_hold
-from .plant import LinearMotorAxis, axis_cycle
-from .strategies import CompiledModel, CoulombViscous, compiled_form
-from .trajectories import Reference
+from sim.controller import MEASURED_VELOCITY, CascadeController, controller_step
+from sim.link import DirectLink, FeedforwardLink, delayed_hold
+from sim.plant import LinearMotorAxis, axis_cycle
+from sim.strategies import CompiledModel, CoulombViscous, compiled_form
+from sim.trajectories import Reference
 
 FloatArray = NDArray[np.float64]
 Signals = tuple[Any, ...]

@@ -32,8 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gms_comp.config import in_range, positive
-
-from .plant import PlantConfig
+from sim.plant import PlantConfig
 
 FloatArray = NDArray[np.float64]
 

@@ -1,7 +1,7 @@
 """Friction truths as numba data: the packs the compiled closed loop steps.
 
 A truth pack ``(kind, scale, ball, gms)`` holds the transient ball set
-(:mod:`gms_comp.transient`'s streaming kernel), a GMS model, or no friction, in
+(:mod:`gms_comp.physics.transient`'s streaming kernel), a GMS model, or no friction, in
 one tuple layout (unused parts are empty placeholders), so that one compiled loop
 serves every truth; ``scale`` multiplies the force (identical ball sets in
 parallel). The arrays are the models' own: stepping a pack advances the model
@@ -17,9 +17,9 @@ import numba
 import numpy as np
 
 from gms_comp import gms as gms_kernel
-from gms_comp import transient
 from gms_comp.gms import GmsStream
-from gms_comp.transient import BallSetFriction
+from gms_comp.physics import transient
+from gms_comp.physics.transient import BallSetFriction
 
 ZERO, BALL_SET, GMS = range(3)
 

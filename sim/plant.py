@@ -30,8 +30,7 @@ from numpy.typing import NDArray
 
 from gms_comp.config import in_range, non_negative, positive
 from gms_comp.errors import ScenarioError
-
-from .kernels import Pack, truth_force, truth_pack, zero_truth
+from sim.kernels import Pack, truth_force, truth_pack, zero_truth
 
 FloatArray = NDArray[np.float64]
 

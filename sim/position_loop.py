@@ -33,9 +33,8 @@ from numpy.typing import NDArray
 
 from gms_comp import gms as gms_kernel
 from gms_comp.gms import GmsParams, GmsStream
-
-from .controller import ControllerConfig
-from .kernels import Pack, truth_force, zero_truth
+from sim.controller import ControllerConfig
+from sim.kernels import Pack, truth_force, zero_truth
 
 FloatArray = NDArray[np.float64]
 

@@ -32,18 +32,17 @@ from gms_comp.config import (
     read_toml,
 )
 from gms_comp.errors import ScenarioError
-from gms_comp.observer import CompensatorConfig, ForceModel, FrictionObserver
-from gms_comp.reduction import reduce_to_gms
-from gms_comp.table import GmsTable, read_table
-from gms_comp.transient import BallSetFriction
-
-from .closed_loop import RunResult, run
-from .controller import CascadeController, ControllerConfig, design
-from .link import DirectLink, FeedforwardLink
-from .plant import Friction, LinearMotorAxis, PlantConfig, ScaledFriction, compiled_truth
-from .position_loop import PositionLoop, RigidAxisModel, simulate_loop
-from .strategies import REGISTRY, STRATEGIES, Calibration, StrategyInputs, calibrate
-from .trajectories import FloatArray, Reference, circle, reversals, sine, step_stop, stops
+from gms_comp.physics.transient import BallSetFriction
+from gms_comp.runtime.observer import CompensatorConfig, ForceModel, FrictionObserver
+from gms_comp.tables.reduction import reduce_to_gms
+from gms_comp.tables.table import GmsTable, read_table
+from sim.closed_loop import RunResult, run
+from sim.controller import CascadeController, ControllerConfig, design
+from sim.link import DirectLink, FeedforwardLink
+from sim.plant import Friction, LinearMotorAxis, PlantConfig, ScaledFriction, compiled_truth
+from sim.position_loop import PositionLoop, RigidAxisModel, simulate_loop
+from sim.strategies import REGISTRY, STRATEGIES, Calibration, StrategyInputs, calibrate
+from sim.trajectories import FloatArray, Reference, circle, reversals, sine, step_stop, stops
 
 MAX_DURATION_S = 600.0
 

@@ -3,7 +3,7 @@ friction force of a GMS along it, then the sensors (noise, encoder and ADC steps
 
 Only the runtime's GMS kernel (:mod:`gms_comp.gms`) is used here: catalogue effects are
 applied at the application level (``gms-comp demo-trace``,
-:mod:`gms_comp.commands.demo_trace`), and the blind tests of the diagnosis use an
+:mod:`gms_comp.app.commands.demo_trace`), and the blind tests of the diagnosis use an
 independent generator (tests/indepgen.py) that shares no code with the project.
 """
 

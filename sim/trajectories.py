@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from gms_comp.profiles import seed_fig7_profile
+from gms_comp.physics.profiles import seed_fig7_profile
 
 FloatArray = NDArray[np.float64]
 

@@ -65,7 +65,7 @@ def _child(case: dict[str, Any], out: IO[bytes], err: IO[bytes]) -> None:
 
 def run_cases(cases: list[dict[str, Any]], parallel: int = PARALLEL) -> list[dict[str, Any]]:
     """Run every case (``parallel`` at a time); results in the order of ``cases``."""
-    from gms_comp.cli import build_parser
+    from gms_comp.app.cli import build_parser
 
     build_parser()  # import every command module once, before forking
     pending = list(enumerate(cases))

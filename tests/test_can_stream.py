@@ -14,7 +14,7 @@ import pytest
 
 from firmware_bridge.session import run_stream
 from firmware_bridge.settings import CanConfig
-from gms_comp.cli import main
+from gms_comp.app.cli import main
 from gms_comp.config import default_config_path
 
 KEYS = {

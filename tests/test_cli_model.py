@@ -15,8 +15,8 @@ from typing import Any
 import pytest
 from matplotlib.figure import Figure
 
-import gms_comp.plots_physics as plots
-from gms_comp.cli import main
+import gms_comp.app.plots_physics as plots
+from gms_comp.app.cli import main
 from gms_comp.config import default_config_path
 
 ROOT = Path(__file__).resolve().parents[1]

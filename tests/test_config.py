@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from gms_comp.cli import main
+from gms_comp.app.cli import main
 from gms_comp.config import default_config_path, load_ball_config
 
 DEFAULT = default_config_path().read_text()

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from scipy import integrate
 
 from gms_comp.config import BearingConfig, load_ball_config
-from gms_comp.contact import hertz_contact
+from gms_comp.physics.contact import hertz_contact
 
 
 @pytest.fixture(scope="module")

@@ -11,16 +11,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gms_comp.cli import main
-from gms_comp.commands.demo_trace import MAIN_PARAMETER, generate, scaled_table_trace
+from gms_comp.app.cli import main
+from gms_comp.app.commands.demo_trace import MAIN_PARAMETER, generate, scaled_table_trace
 from gms_comp.config import load_ball_config
-from gms_comp.diagnosis.run import diagnose
-from gms_comp.effects import ExtensionError, effect_from_dict
 from gms_comp.errors import GmsCompError
 from gms_comp.gms import GmsParams
-from gms_comp.reduction import reduce_to_gms
-from gms_comp.table import GmsTable, read_table, write_table
-from gms_comp.traces import Trace, write_trace
+from gms_comp.measured.diagnosis.run import diagnose
+from gms_comp.measured.traces import Trace, write_trace
+from gms_comp.runtime.effects import ExtensionError, effect_from_dict
+from gms_comp.tables.reduction import reduce_to_gms
+from gms_comp.tables.table import GmsTable, read_table, write_table
 
 # Relative tolerance on the main parameter of each effect (over seeds 1-5 the worst
 # errors were: dwell_time gamma 12 % (tau comes out up to 40 % high and gamma with it),

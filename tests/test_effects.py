@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from gms_comp import effects as fx
+from gms_comp.runtime import effects as fx
 
 
 def _ctx(

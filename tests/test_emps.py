@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gms_comp.diagnosis import emps
-from gms_comp.traces import load_trace
+from gms_comp.measured.diagnosis import emps
+from gms_comp.measured.traces import load_trace
 
 EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
 pytestmark = pytest.mark.skipif(

@@ -24,22 +24,22 @@ SECTIONS = (
     ("bearing", "gms_comp.config", "BearingConfig"),
     ("stand", "gms_comp.config", "StandConfig"),
     ("model", "gms_comp.config", "ModelConfig"),
-    ("table", "gms_comp.reduction", "TableConfig"),
-    ("compensator", "gms_comp.observer", "CompensatorConfig"),
+    ("table", "gms_comp.tables.reduction", "TableConfig"),
+    ("compensator", "gms_comp.runtime.observer", "CompensatorConfig"),
     ("plant", "sim.plant", "PlantConfig"),
     ("controller", "sim.controller", "ControllerConfig"),
     ("scenario", "sim.scenarios", "ScenarioConfig"),
     ("can", "firmware_bridge.settings", "CanConfig"),
-    ("diagnosis", "gms_comp.diagnosis.run", "DiagnosisConfig"),
-    ("scaleout", "gms_comp.scaleout", "ScaleoutConfig"),
+    ("diagnosis", "gms_comp.measured.diagnosis.run", "DiagnosisConfig"),
+    ("scaleout", "gms_comp.app.scaleout", "ScaleoutConfig"),
 )
 CAP_MODULES = (
     "gms_comp.validation",
     "gms_comp.config",
-    "gms_comp.contact",
-    "gms_comp.table",
-    "gms_comp.traces",
-    "gms_comp.sweep",
+    "gms_comp.physics.contact",
+    "gms_comp.tables.table",
+    "gms_comp.measured.traces",
+    "gms_comp.app.sweep",
 )
 _CAP = re.compile(r"((?:^#:.*\n)+)^((?:MAX|MIN)_[A-Z0-9_]+)\s*=", re.MULTILINE)
 

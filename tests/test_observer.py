@@ -12,8 +12,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gms_comp.gms import GmsParams, GmsStream
-from gms_comp.observer import CompensatorConfig, FrictionObserver
-from gms_comp.table import Extension, Fidelity, GmsTable
+from gms_comp.runtime.observer import CompensatorConfig, FrictionObserver
+from gms_comp.tables.table import Extension, Fidelity, GmsTable
 
 SERVO_S = 2.5e-4
 KF = 50.0

@@ -10,12 +10,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from gms_comp.ball_model import steady_state
-from gms_comp.cli import main
+from gms_comp.app.cli import main
 from gms_comp.config import config_hash, default_config_path, load_ball_config
 from gms_comp.errors import ConfigError
 from gms_comp.gms import GmsParams, simulate
-from gms_comp.reduction import (
+from gms_comp.physics.ball_model import steady_state
+from gms_comp.tables.reduction import (
     TableConfig,
     equal_force_breakpoints,
     fidelity,
@@ -25,7 +25,7 @@ from gms_comp.reduction import (
     reduce_to_gms,
     with_reference,
 )
-from gms_comp.table import read_table, write_table
+from gms_comp.tables.table import read_table, write_table
 
 C_V = 1.2
 BREAKPOINTS_m = np.geomspace(1e-7, 1e-4, 6)

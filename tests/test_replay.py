@@ -17,12 +17,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gms_comp import replay
-from gms_comp.cli import main
-from gms_comp.effects import Context, apply_extensions, effect_from_dict
+from gms_comp.app import replay
+from gms_comp.app.cli import main
 from gms_comp.gms import GmsParams, simulate
-from gms_comp.table import Extension, Fidelity, GmsTable
-from gms_comp.traces import Trace, write_trace
+from gms_comp.measured.traces import Trace, write_trace
+from gms_comp.runtime.effects import Context, apply_extensions, effect_from_dict
+from gms_comp.tables.table import Extension, Fidelity, GmsTable
 from gms_comp.validation import InputError
 from sim.link import DirectLink
 from sim.position_loop import PositionLoop, RigidAxisModel, friction_along, simulate_loop

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from gms_comp.gms import GmsParams, GmsStream
-from gms_comp.table import Fidelity, GmsTable
+from gms_comp.tables.table import Fidelity, GmsTable
 from sim.link import DirectLink
 from sim.plant import ZeroFriction
 from sim.scenarios import (

@@ -20,7 +20,7 @@ import pytest
 
 from firmware_bridge.link import CanFeedforwardLink
 from firmware_bridge.settings import ProfileName, load_can_config
-from gms_comp.cli import main
+from gms_comp.app.cli import main
 from gms_comp.config import default_config_path
 from sim.link import DirectLink
 from sim.scenarios import Scenario, load_scenario, run_strategies

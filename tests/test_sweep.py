@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gms_comp.cli import main
+from gms_comp.app.cli import main
+from gms_comp.app.scaleout import dask_client, run_jobs
+from gms_comp.app.sweep import load_family, load_sweep, run_sweep
 from gms_comp.config import default_config_path
 from gms_comp.errors import ConfigError, TableError
-from gms_comp.scaleout import dask_client, run_jobs
-from gms_comp.sweep import load_family, load_sweep, run_sweep
-from gms_comp.table import read_table
+from gms_comp.tables.table import read_table
 
 LOADS = "[25.0, 50.0]"
 

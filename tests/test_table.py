@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from gms_comp import __version__
 from gms_comp.errors import GmsCompError, TableError
 from gms_comp.gms import GmsParams
-from gms_comp.table import (
+from gms_comp.tables.table import (
     Extension,
     Fidelity,
     GmsTable,
@@ -176,7 +176,7 @@ def test_errors_belong_to_the_project_root_and_to_value_error(tmp_path: Path) ->
 def test_table_command_writes_a_readable_table(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from gms_comp.cli import main
+    from gms_comp.app.cli import main
 
     out = tmp_path / "t8.json"
     assert main(["table", "-o", str(out), "--elements", "8", "--json"]) == 0

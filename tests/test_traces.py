@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gms_comp.errors import GmsCompError, TraceError
-from gms_comp.traces import Trace, load_trace, parse_mapping, write_trace
+from gms_comp.measured.traces import Trace, load_trace, parse_mapping, write_trace
 
 EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
 needs_emps = pytest.mark.skipif(
@@ -163,7 +163,7 @@ def test_emps_named_matrix_is_refused(tmp_path: Path) -> None:
 def test_mat_variable_is_refused_by_declared_size_before_loading(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import gms_comp.traces as traces
+    import gms_comp.measured.traces as traces
 
     n = 300
     t = np.arange(n) * 1e-3
@@ -184,7 +184,7 @@ def test_mat_variable_is_refused_by_declared_size_before_loading(
 
 
 def test_csv_rows_are_capped_while_reading(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    import gms_comp.traces as traces
+    import gms_comp.measured.traces as traces
 
     monkeypatch.setattr(traces, "MAX_TRACE_SAMPLES", 150)
     p = _csv(tmp_path, "time_s,position_m,force_N\n" + _good_rows(200) + "\n")

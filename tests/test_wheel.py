@@ -83,7 +83,7 @@ def test_package_imported_from_the_venv_with_its_data(venv: Path, outside: Path)
     probe = """
 import json
 from importlib import resources
-import gms_comp, firmware_bridge, sim, gms_comp.diagnosis
+import gms_comp, firmware_bridge, sim, gms_comp.measured.diagnosis
 files = {
     "dbc": resources.files("firmware_bridge") / "gms_ff.dbc",
     "eds": resources.files("firmware_bridge") / "cia402_drive.eds",
@@ -110,13 +110,13 @@ def test_every_subcommand_help_runs(venv: Path, outside: Path) -> None:
     top = _run([venv / "gms-comp", "--help"], cwd=outside).stdout
     assert "usage: gms-comp" in top
     # The subcommands the installed CLI registers, so a new one is covered by itself.
-    listing = "from gms_comp.cli import SUBCOMMANDS; print(' '.join(SUBCOMMANDS))"
+    listing = "from gms_comp.app.cli import SUBCOMMANDS; print(' '.join(SUBCOMMANDS))"
     names = _run([venv / "python", "-c", listing], cwd=outside).stdout.split()
     assert {"model", "table", "diagnose", "simulate", "stream", "config"} <= set(names)
     # One interpreter for all of them: each --help imports the same modules.
     probe = f"""
 import contextlib, io, sys
-from gms_comp.cli import main
+from gms_comp.app.cli import main
 for name in {names!r}:
     out = io.StringIO()
     with contextlib.redirect_stdout(out):

@@ -14,11 +14,10 @@ from typing import Any, Protocol
 
 import can
 
+from firmware_bridge.profiles import PROFILES
+from firmware_bridge.settings import CanConfig
+from firmware_bridge.supervisor import RejectCounts
 from gms_comp.errors import BusError
-
-from ..settings import CanConfig
-from ..supervisor import RejectCounts
-from . import PROFILES
 
 
 class SyncCounter:

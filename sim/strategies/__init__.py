@@ -8,13 +8,12 @@ method (:class:`sim.strategies.base.Strategy`; a model with a compiled step offe
 from __future__ import annotations
 
 from gms_comp.gms import GmsStream
-from gms_comp.observer import ForceModel
-
-from .base import Calibration, CompiledModel, Strategy, StrategyInputs, calibrate
-from .coulomb_viscous import CoulombViscous, CoulombViscousStrategy
-from .gms import GmsStrategy, compiled_gms
-from .lugre import LuGre, LuGreStrategy
-from .none import NoFeedforward
+from gms_comp.runtime.observer import ForceModel
+from sim.strategies.base import Calibration, CompiledModel, Strategy, StrategyInputs, calibrate
+from sim.strategies.coulomb_viscous import CoulombViscous, CoulombViscousStrategy
+from sim.strategies.gms import GmsStrategy, compiled_gms
+from sim.strategies.lugre import LuGre, LuGreStrategy
+from sim.strategies.none import NoFeedforward
 
 REGISTRY: dict[str, Strategy] = {
     s.name: s

@@ -3,7 +3,7 @@
 A strategy (one module in this package, registered in one line of its
 ``__init__``) names itself and builds the compensator's model for a scenario from
 :class:`StrategyInputs`: the GMS table, the calibration of the static baselines, the
-velocity band. The model is a GMS table, any :class:`gms_comp.observer.ForceModel`, or
+velocity band. The model is a GMS table, any :class:`gms_comp.runtime.observer.ForceModel`, or
 ``None`` for no feedforward. A model that offers ``compiled() -> CompiledModel`` runs
 inside the closed loop's one compiled call; its step is a numba function of the one
 signature :data:`STEP_SIGNATURE`, passed to the loop as a first-class function (no kind
@@ -28,10 +28,9 @@ from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
 from gms_comp.gms import GmsParams, GmsStream
-from gms_comp.observer import ForceModel
-from gms_comp.table import GmsTable
-
-from ..plant import Friction
+from gms_comp.runtime.observer import ForceModel
+from gms_comp.tables.table import GmsTable
+from sim.plant import Friction
 
 FloatArray = NDArray[np.float64]
 

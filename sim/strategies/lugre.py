@@ -9,10 +9,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gms_comp.observer import ForceModel
-from gms_comp.table import GmsTable
-
-from .base import CompiledModel, FloatArray, StrategyInputs, compiled_step
+from gms_comp.runtime.observer import ForceModel
+from gms_comp.tables.table import GmsTable
+from sim.strategies.base import CompiledModel, FloatArray, StrategyInputs, compiled_step
 
 
 @compiled_step

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-from gms_comp.observer import ForceModel
-from gms_comp.table import GmsTable
-
-from .base import StrategyInputs
+from gms_comp.runtime.observer import ForceModel
+from gms_comp.tables.table import GmsTable
+from sim.strategies.base import StrategyInputs
 
 
 class NoFeedforward:

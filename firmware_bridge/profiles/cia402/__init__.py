@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import can
 
-from ...settings import CanConfig
-from ..base import Profile
-from .drive import Cia402Drive
-from .nc import SyncProducer
-from .tx import Cia402Tx
+from firmware_bridge.profiles.base import Profile
+from firmware_bridge.profiles.cia402.drive import Cia402Drive
+from firmware_bridge.profiles.cia402.nc import SyncProducer
+from firmware_bridge.profiles.cia402.tx import Cia402Tx
+from firmware_bridge.settings import CanConfig
 
 
 class Cia402Profile:

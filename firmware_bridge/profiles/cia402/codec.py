@@ -24,11 +24,10 @@ import can
 import canopen
 from canopen.objectdictionary import ObjectDictionary
 
+from firmware_bridge.freshness import COUNTER_MODULUS
+from firmware_bridge.resources import packaged_path
+from firmware_bridge.settings import CanConfig
 from gms_comp.errors import BusError
-
-from ...freshness import COUNTER_MODULUS
-from ...resources import packaged_path
-from ...settings import CanConfig
 
 TORQUE_OFFSET = 0x60B2
 ALIVE_COUNTER = 0x2001  # manufacturer object mapped beside 0x60B2

@@ -5,10 +5,10 @@ from __future__ import annotations
 import can
 import canopen
 
-from ...settings import CanConfig
-from ...supervisor import RejectCounts
-from .codec import Cia402Codec, configure_drive, load_drive_od
-from .receiver import Cia402Receiver
+from firmware_bridge.profiles.cia402.codec import Cia402Codec, configure_drive, load_drive_od
+from firmware_bridge.profiles.cia402.receiver import Cia402Receiver
+from firmware_bridge.settings import CanConfig
+from firmware_bridge.supervisor import RejectCounts
 
 
 class Cia402Drive:

@@ -9,7 +9,7 @@ from collections.abc import Callable
 
 import can
 
-from .codec import Cia402Codec
+from firmware_bridge.profiles.cia402.codec import Cia402Codec
 
 
 class SyncProducer:

@@ -5,10 +5,8 @@ from __future__ import annotations
 import can
 import canopen
 
-from ...freshness import FrameClock
-from ...settings import CanConfig, cycles_within
-from ...supervisor import RejectCounts, Supervisor, Verdict
-from .codec import (
+from firmware_bridge.freshness import FrameClock
+from firmware_bridge.profiles.cia402.codec import (
     ABORT_ACTIONS,
     ABORT_CONNECTION_OPTION,
     EMCY_HEARTBEAT,
@@ -26,6 +24,8 @@ from .codec import (
     read_object,
     write_object,
 )
+from firmware_bridge.settings import CanConfig, cycles_within
+from firmware_bridge.supervisor import RejectCounts, Supervisor, Verdict
 
 
 class Cia402Receiver:

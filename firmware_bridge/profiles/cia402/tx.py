@@ -6,9 +6,9 @@ from typing import Any
 
 import can
 
-from ...settings import CanConfig
-from ..base import SyncCounter
-from .codec import Cia402Codec, load_drive_od
+from firmware_bridge.profiles.base import SyncCounter
+from firmware_bridge.profiles.cia402.codec import Cia402Codec, load_drive_od
+from firmware_bridge.settings import CanConfig
 
 _BOOTUP = b"\x00"  # NMT boot-up: the same COB-ID as the heartbeat, not one
 

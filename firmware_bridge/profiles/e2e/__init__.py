@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import can
 
-from ...settings import CanConfig
-from ..base import Profile
-from .drive import E2eDrive
-from .tx import E2eTx
+from firmware_bridge.profiles.base import Profile
+from firmware_bridge.profiles.e2e.drive import E2eDrive
+from firmware_bridge.profiles.e2e.tx import E2eTx
+from firmware_bridge.settings import CanConfig
 
 
 class E2eProfile:

@@ -17,10 +17,9 @@ import can
 import cantools
 from cantools.database.can import Message
 
+from firmware_bridge.freshness import COUNTER_MODULUS
+from firmware_bridge.resources import packaged_path
 from gms_comp.errors import BusError
-
-from ...freshness import COUNTER_MODULUS
-from ...resources import packaged_path
 
 CRC_BYTES = 2
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import can
 
-from ...settings import CanConfig
-from ...supervisor import RejectCounts, Supervisor, Verdict
-from .codec import E2eCodec
-from .receiver import E2eReceiver
+from firmware_bridge.profiles.e2e.codec import E2eCodec
+from firmware_bridge.profiles.e2e.receiver import E2eReceiver
+from firmware_bridge.settings import CanConfig
+from firmware_bridge.supervisor import RejectCounts, Supervisor, Verdict
 
 STATE_NAMES = ("resync", "active", "hold", "fallback")  # the DBC's DriveStatus.State
 

@@ -5,9 +5,9 @@
 
 from __future__ import annotations
 
-from ...freshness import FrameClock
-from ...supervisor import RejectCounts, Supervisor, Verdict
-from .codec import E2eCodec
+from firmware_bridge.freshness import FrameClock
+from firmware_bridge.profiles.e2e.codec import E2eCodec
+from firmware_bridge.supervisor import RejectCounts, Supervisor, Verdict
 
 
 class E2eReceiver:

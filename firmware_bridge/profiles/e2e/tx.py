@@ -6,9 +6,9 @@ from typing import Any
 
 import can
 
-from ...settings import CanConfig
-from ..base import SyncCounter
-from .codec import DriveStatus, E2eCodec
+from firmware_bridge.profiles.base import SyncCounter
+from firmware_bridge.profiles.e2e.codec import DriveStatus, E2eCodec
+from firmware_bridge.settings import CanConfig
 
 
 class E2eTx:

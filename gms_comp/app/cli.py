@@ -1,0 +1,86 @@
+"""The ``gms-comp`` command line.
+
+Each subcommand lives in ``gms_comp.app.commands.<name>`` and exposes
+``register(subparsers)``, which adds its parser and sets ``func`` to a callable
+taking the parsed namespace and returning the exit code. Bad input raised as
+:class:`~gms_comp.errors.GmsCompError` becomes one line on stderr and exit code 2;
+Ctrl-C, wherever it lands (importing the subcommands, parsing, running), one line
+and exit code 130; a closed stdout (``| head``) ends the run quietly with exit code 1.
+
+Every subcommand follows one convention: ``--json`` prints the result as JSON on
+stdout and nothing else there; without it a short human summary goes to stdout.
+Files are written only where an option names them (``-o/--output``, ``--plot DIR``,
+...), each announced by one ``wrote PATH`` line (on stderr under ``--json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+from collections.abc import Sequence
+
+from gms_comp import __version__
+from gms_comp.errors import GmsCompError
+
+# One line per subcommand, each a module gms_comp.app.commands.<name> with register().
+SUBCOMMANDS: tuple[str, ...] = (
+    "model",
+    "config",
+    "diagnose",
+    "profile",
+    "demo_trace",
+    "sweep",
+    "stream",
+    "simulate",
+    "replay",
+    "table",
+    "bench",
+)
+
+INTERRUPTED = 130  # the shell's code for a process ended by SIGINT
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``gms-comp`` parser with every subcommand of :data:`SUBCOMMANDS` registered."""
+    parser = argparse.ArgumentParser(
+        prog="gms-comp",
+        description="Friction compensation for linear-motor axes with ball guides.",
+    )
+    parser.add_argument("--version", action="version", version=f"gms-comp {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name in SUBCOMMANDS:
+        importlib.import_module(f"gms_comp.app.commands.{name}").register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``gms-comp`` with ``argv`` (default: the process arguments); return the exit code."""
+    command = "gms-comp"
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        command = f"gms-comp {args.command}"
+        code: int = args.func(args)
+    except GmsCompError as err:
+        print(f"{command}: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"{command}: interrupted", file=sys.stderr)
+        return INTERRUPTED
+    except BrokenPipeError:  # the reader of stdout went away (`gms-comp ... | head`)
+        _silence_stdout()
+        return 1
+    return code
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so that the interpreter's final flush does not fail again."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

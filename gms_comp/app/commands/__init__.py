@@ -1,0 +1,1 @@
+"""Subcommands of the ``gms-comp`` CLI, one module each (see :mod:`gms_comp.app.cli`)."""

@@ -1,0 +1,309 @@
+"""``gms-comp diagnose``: where the model is wrong on a measured trace, the cause, the gain.
+
+Without ``--json`` a progress line on stderr, then a readable summary on stdout: where the
+baseline is wrong by motion phase, the cause and its parameters with units, the gain and
+the files written. With ``--json`` the result as JSON on stdout and nothing else there.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from gms_comp.app.fleet import FleetJob, diagnose_fleet, format_table, report_names
+from gms_comp.app.scaleout import dask_client
+from gms_comp.config import config_hash, load_ball_config, read_toml
+from gms_comp.errors import GmsCompError
+from gms_comp.gms import GmsParams
+from gms_comp.measured.diagnosis import emps
+from gms_comp.measured.diagnosis.report import parameter_text, phase_label
+from gms_comp.measured.diagnosis.run import Diagnosis, diagnose, load_diagnosis_config
+from gms_comp.measured.traces import Trace, load_trace, parse_mapping
+from gms_comp.runtime.effects import effect_to_dict
+from gms_comp.tables.reduction import reduce_to_gms
+from gms_comp.tables.table import Extension, Fidelity, GmsTable, read_table, write_table
+from gms_comp.validation import output_dir, output_file
+
+COLUMNS_HELP = (
+    "A canonical CSV has a header row and one sample per row, SI units: time_s (s, strictly "
+    "increasing), position_m (m) and force_N (N) are required; velocity_m_s, "
+    "reference_position_m, current_A and normal_load_N are optional. EMPS .mat files "
+    "(variables t, qm, qg, vir, gtau) are read directly; any other .csv/.mat with --map."
+)
+
+
+def register(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "diagnose",
+        help="diagnose measured traces against the model",
+        description=(
+            "Diagnose one trace, or a fleet of traces in parallel on Dask (a local cluster, "
+            "or an existing one with --scheduler): the named effect, its parameters and "
+            "the gain per trace, and the effects that recur across the fleet. " + COLUMNS_HELP
+        ),
+    )
+    p.add_argument(
+        "traces",
+        nargs="+",
+        metavar="TRACE",
+        help="canonical CSV, EMPS .mat, or any .csv/.mat with --map",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="Dask scheduler for many traces, e.g. tcp://host:8786 (default: local cluster)",
+    )
+    p.add_argument("--workers", type=int, help="local cluster size (default: one per core)")
+    p.add_argument("--serial", action="store_true", help="many traces in this process, no Dask")
+    p.add_argument(
+        "--config",
+        help=(
+            "config file: [diagnosis] section; with [bearing] and [stand] sections its ball "
+            "model is reduced to a GMS table, calibrated as the baseline"
+        ),
+    )
+    p.add_argument(
+        "--table-in",
+        metavar="TABLE",
+        help="GMS table to calibrate as the baseline (its level, presliding, velocity level)",
+    )
+    p.add_argument(
+        "--force-kind",
+        choices=("friction", "drive"),
+        help="what force_N is (default: drive for EMPS files, else friction)",
+    )
+    p.add_argument("--validate", metavar="TRACE2", help="held-out trace (else blocks of TRACE)")
+    p.add_argument(
+        "--map",
+        action="append",
+        default=[],
+        metavar="COLUMN=EXPR",
+        help="column mapping, e.g. position_m=pos_mm*0.001 (repeatable)",
+    )
+    p.add_argument(
+        "--json", action="store_true", help="print the result as JSON on stdout (only that)"
+    )
+    p.add_argument(
+        "--report",
+        metavar="DIR",
+        type=output_dir,
+        help="write plots, index.html and the extended table into this folder",
+    )
+    p.add_argument(
+        "--table", metavar="OUT", type=output_file, help="write the extended model as a GMS table"
+    )
+    p.add_argument(
+        "--closed-loop",
+        nargs="?",
+        const="",
+        metavar="SCENARIO",
+        help=(
+            "simulate the axis with the diagnosed friction and compare the compensator with "
+            "the baseline and the extended model (scenario config; default: Table 1's)"
+        ),
+    )
+    p.set_defaults(func=run)
+
+
+@contextmanager
+def _progress(enabled: bool) -> Iterator[Callable[[str], None]]:
+    """A status line on stderr (only on a terminal) fed with the diagnosis's steps."""
+    bar = tqdm(total=None, desc="diagnose", bar_format="{desc} [{elapsed}]", file=sys.stderr,
+               disable=None if enabled else True, leave=False)  # fmt: skip
+    try:
+        yield lambda msg: bar.set_description_str(f"diagnose: {msg}")
+    finally:
+        bar.close()
+
+
+def run(args: argparse.Namespace) -> int:
+    """Diagnose one trace (or a fleet) and report."""
+    mapping = parse_mapping(args.map, "--map") if args.map else None
+    if len(args.traces) > 1 or args.scheduler:
+        return _run_fleet(args, mapping)
+    args.trace = args.traces[0]
+    trace = load_trace(args.trace, mapping)
+    validation = load_trace(args.validate, mapping) if args.validate else None
+    kind = args.force_kind or trace.force_kind or "friction"
+    config = load_diagnosis_config(args.config)
+    with _progress(True) as say:
+        result = diagnose(trace, kind, validation, config, _baseline_table(args), say)
+    doc = result.to_json()
+    doc["trace"] = str(args.trace)
+    if trace.force_kind == "drive" and kind == "drive":
+        doc.update(_benchmark_errors(trace, validation, result))
+    if args.closed_loop is not None:
+        from gms_comp.app.commands.diagnose_closed_loop import (
+            closed_loop_gain,  # the simulated axis when asked
+        )
+
+        doc["closed_loop"] = closed_loop_gain(result, args.closed_loop or None)
+    table_path = args.table or (Path(args.report) / "extended.table.json" if args.report else None)
+    written: list[str] = []
+    if args.report:
+        Path(args.report).mkdir(parents=True, exist_ok=True)
+    if table_path is not None:
+        write_table(table_path, _table(result, args.trace))
+        doc["table"] = str(table_path)
+        written.append(str(table_path))
+    if args.report:
+        from gms_comp.measured.diagnosis.report import (
+            write_report,  # matplotlib only when asked for
+        )
+
+        doc["report"] = [str(p) for p in write_report(result, args.report)]
+        written.extend(doc["report"])
+    if args.json:
+        sys.stdout.write(json.dumps(doc, indent=2) + "\n")
+        for path in written:
+            print(f"wrote {path}", file=sys.stderr)
+    else:
+        print(summary(doc, len(trace), kind))
+        for path in written:
+            print(f"wrote {path}")
+    return 0
+
+
+def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
+    """The diagnosis JSON as a short text for people."""
+    b = doc["baseline"]
+    lines = [
+        f"diagnosis of {doc['trace']} ({samples} samples, {kind} force), {doc['seconds']:.1f} s",
+        f"baseline: {b['model'].replace('_', ' ')}, sliding force {b['sliding_force_N']:.4g} N, "
+        f"slip level C_v {b['slip_level']:.3g}, held-out RMS {doc['baseline_rms_N']:.4g} N "
+        f"(noise {doc['noise_rms_N']:.3g} N)",
+        "where the baseline is wrong (residual RMS by motion phase):",
+    ]
+    phases = sorted(doc["phases"].items(), key=lambda kv: -kv[1]["rms_N"])
+    for key, ph in phases[:6]:
+        lines.append(
+            f"  {phase_label(key):34s} {ph['rms_N']:9.4g} N  (mean {ph['mean_N']:+.3g} N, "
+            f"{ph['fraction']:.0%} of samples)"
+        )
+    effect = doc["effect"]
+    if effect == "unknown":
+        lines.append("cause: unknown - no catalogue effect explains what is left: "
+                     + doc["structure"]["description"])  # fmt: skip
+        if doc["effects"]:
+            lines.append("  partial candidates: " + ", ".join(e["effect"] for e in doc["effects"]))
+    elif effect == "none":
+        lines.append("cause: none - the baseline explains the trace down to noise-like residual")
+    for i, e in enumerate(doc["effects"]):
+        params = ", ".join(parameter_text(k, v) for k, v in e["parameters"].items())
+        head = "cause" if i == 0 and effect != "unknown" else "  then"
+        lines.append(f"{head}: {e['effect']} ({params})")
+    lines.append(
+        f"gain: {doc['gain']:.1%} (held-out RMS {doc['baseline_rms_N']:.4g} N -> "
+        f"{doc['extended_rms_N']:.4g} N)"
+    )
+    for name, pct in (
+        ("train", doc.get("relative_error_pct")),
+        ("cross-test", doc.get("validation_relative_error_pct")),
+    ):
+        if pct:
+            lines.append(
+                f"EMPS {name} relative error: extended {pct['extended']:.2f} %, baseline "
+                f"{pct['baseline']:.2f} %, IDIM-LS reference {pct['reference_idim_ls']:.2f} %"
+            )
+    return "\n".join(lines)
+
+
+def _baseline_table(args: argparse.Namespace) -> GmsParams | None:
+    """The GMS table to calibrate: ``--table-in``, else the ball model of a ``--config``
+    that describes a bearing, else none (the free NNLS GMS)."""
+    if args.table_in:
+        return read_table(args.table_in).params
+    if args.config and "bearing" in read_toml(args.config):
+        return reduce_to_gms(load_ball_config(args.config)).params
+    return None
+
+
+def _run_fleet(args: argparse.Namespace, mapping: Mapping[str, str] | None) -> int:
+    """Many traces: one job each, a summary row each, recurring effects across them.
+
+    A baseline table (``--table-in`` or a bearing ``--config``) is made once here and
+    calibrated on each trace by its job."""
+    for flag in ("validate", "table", "closed_loop"):
+        if getattr(args, flag) is not None:
+            raise GmsCompError(
+                f"--{flag.replace('_', '-')} applies to a single trace, not to a fleet"
+            )
+    table = _baseline_table(args)
+    names = report_names(args.traces)
+    jobs = [
+        FleetJob(
+            trace=str(path),
+            force_kind=args.force_kind,
+            config=args.config,
+            mapping=tuple(sorted(mapping.items())) if mapping else (),
+            report_dir=str(Path(args.report) / name) if args.report else None,
+            table=table,
+        )
+        for path, name in zip(args.traces, names, strict=True)
+    ]
+    if args.serial:
+        fleet = diagnose_fleet(jobs)
+    else:
+        with dask_client(args.scheduler, args.workers) as client:
+            fleet = diagnose_fleet(jobs, client=client)
+    written = [p for row in fleet["traces"] for p in row.get("report", [])]
+    if args.json:
+        sys.stdout.write(json.dumps(fleet, indent=2) + "\n")
+    else:
+        print(format_table(fleet))
+    for path in written:
+        print(f"wrote {path}", file=sys.stderr if args.json else sys.stdout)
+    return 0 if all(row["status"] == "ok" for row in fleet["traces"]) else 1
+
+
+def _table(result: Diagnosis, trace_path: str) -> GmsTable:
+    level = max(float(result.baseline["sliding_force_N"]), 1e-12)
+    s = result.series
+    worst = float(np.max(np.abs(s["force_N"] - s["extended_N"])))
+    return GmsTable(
+        params=result.gms,
+        source_config=str(trace_path),
+        source_sha256=config_hash(trace_path),
+        fidelity=Fidelity(rms_rel=result.extended_rms_N / level, max_rel=worst / level),
+        extensions=tuple(
+            Extension(d["effect"], d["parameters"]) for d in map(effect_to_dict, result.extensions)
+        ),
+    )
+
+
+def _benchmark_errors(trace: Trace, validation: Trace | None, result: Diagnosis) -> dict[str, Any]:
+    """The EMPS benchmark's relative errors (decimated, first samples dropped) of the
+    IDIM-LS reference and of our baseline and extended models."""
+    s = result.series
+    cut = emps.DROPPED_SAMPLES
+    ref = emps.idim_ls(trace)
+    out: dict[str, Any] = {
+        "relative_error_pct": {
+            "reference_idim_ls": ref.relative_error_pct,
+            "baseline": emps.relative_error_pct(s["force_N"][cut:], s["baseline_N"][cut:]),
+            "extended": emps.relative_error_pct(s["force_N"][cut:], s["extended_N"][cut:]),
+        },
+        "reference_parameters": ref.parameters(),
+        "reference_model_misses": emps.reference_model_misses(
+            result.to_json()["effects"], result.baseline_rms_N
+        ),
+    }
+    if validation is not None:
+        out["validation_relative_error_pct"] = {
+            "reference_idim_ls": emps.cross_test(ref, validation).relative_error_pct,
+            "baseline": emps.relative_error_pct(
+                s["validation_force_N"][cut:], s["validation_baseline_N"][cut:]
+            ),
+            "extended": emps.relative_error_pct(
+                s["validation_force_N"][cut:], s["validation_extended_N"][cut:]
+            ),
+        }
+    return out

@@ -1,0 +1,91 @@
+"""``gms-comp sweep``: one GMS table per point of a grid over config keys, on Dask."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from gms_comp.app.scaleout import dask_client, tls_files
+from gms_comp.app.sweep import load_sweep, run_sweep
+from gms_comp.validation import MAX_WORKERS, input_file, int_in_range, output_dir, scheduler_address
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "sweep",
+        help="generate a family of tables over a parameter grid (Dask)",
+        description=(
+            "Generate one GMS table per point of the grid in SWEEP.toml, on a local Dask "
+            "cluster (listening on 127.0.0.1 only) or on an existing one (--scheduler; use "
+            "tls:// with certificates: a scheduler runs any code sent to it). A rerun into "
+            "the same folder resumes: points already done are not computed again."
+        ),
+    )
+    parser.add_argument("sweep_file", type=Path, metavar="SWEEP.toml", help="sweep definition")
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        type=scheduler_address,
+        help="Dask scheduler address, tls://host:8786 or tcp://host:8786 "
+        "(default: [scaleout] scheduler of the sweep file, else a local cluster)",
+    )
+    for option, what in (
+        ("--tls-ca-file", "CA certificate (PEM) that signed the scheduler's certificate"),
+        ("--tls-cert", "this client's certificate (PEM)"),
+        ("--tls-key", "this client's private key (PEM)"),
+    ):
+        parser.add_argument(option, type=input_file, metavar="PEM", help=what)
+    parser.add_argument(
+        "--workers",
+        type=int_in_range(1, MAX_WORKERS),
+        default=None,
+        help="local cluster size (default: one per core)",
+    )
+    parser.add_argument("--serial", action="store_true", help="run in this process, no Dask")
+    parser.add_argument(
+        "-o",
+        "--output",
+        type=output_dir,
+        default=Path("family"),
+        help="output folder (default: family)",
+    )
+    parser.add_argument("--json", action="store_true", help="print the manifest as JSON")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    spec = load_sweep(args.sweep_file)
+    if args.serial:
+        manifest = run_sweep(spec, args.output)
+    else:
+        cfg = spec.scaleout
+        if args.tls_ca_file or args.tls_cert or args.tls_key:
+            tls = tls_files(args.tls_ca_file, args.tls_cert, args.tls_key)
+        else:
+            tls = tls_files(
+                cfg.tls_ca_file, cfg.tls_cert, cfg.tls_key, source=f"{spec.path}: scaleout"
+            )
+        scheduler = args.scheduler or cfg.scheduler or None
+        with dask_client(scheduler, args.workers, tls) as client:
+            manifest = run_sweep(spec, args.output, client=client)
+    points = manifest["points"]
+    if args.json:
+        json.dump(manifest, sys.stdout, indent=2)
+        print()
+    else:
+        _print_summary(points, args.output)
+    return 0 if all(p["status"] == "ok" for p in points) else 1
+
+
+def _print_summary(points: list[dict[str, Any]], out: Path) -> None:
+    ok = [p for p in points if p["status"] == "ok"]
+    print(f"{len(ok)}/{len(points)} tables in {out} (manifest: {out / 'manifest.json'})")
+    if ok:
+        worst = max(ok, key=lambda p: p["fidelity"]["rms_rel"])
+        print(f"worst fidelity: rms_rel {worst['fidelity']['rms_rel']:.2%} at {worst['values']}")
+    for p in points:
+        if p["status"] != "ok":
+            print(f"point {p['index']} {p['values']}: {p['status']}: {p.get('reason', '')}")

@@ -1,1 +1,0 @@
-"""Subcommands of the ``gms-comp`` CLI, one module each (see :mod:`gms_comp.cli`)."""

@@ -1,0 +1,287 @@
+"""Stage 2: the baseline model, calibrated on the training rows.
+
+The blind baseline is a free NNLS GMS that carries the seed's velocity dependence: a
+sliding level C_v >= 1 above the stick level, reached over a transition velocity v_t
+(../shared/spec/physics.md), fitted jointly with the element limits: for each (C_v, v_t)
+the limits are a non-negative least-squares fit, and (C_v, v_t) are searched on a
+bounded grid and refined by a bounded number of coordinate steps. A trace whose only
+departure from a GMS is C_v is therefore explained by the baseline (``none``), not
+handed to a catalogue effect. Given a GMS table (from the user's bearing), its level,
+presliding scale and velocity dependence are calibrated instead (:mod:`.basis`), and the
+table is the baseline if its held-out RMS is within ``table_margin`` of the free GMS's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from gms_comp.gms import GmsParams
+from gms_comp.measured.diagnosis.basis import (
+    FreeBasis,
+    Samples,
+    TableBasis,
+    breakaway_grid,
+    calibrate_table,
+    presliding_length,
+)
+from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.design import (
+    Columns,
+    FloatArray,
+    GramDesign,
+    PartDesign,
+    rms,
+    train_rms,
+)
+from gms_comp.measured.diagnosis.prepare import Part, Prepared
+from gms_comp.runtime import effects as fx
+
+Basis = FreeBasis | TableBasis
+
+# The slip level's search: C_v on this grid (1 first: no velocity dependence), v_t
+# on a log grid, then at most REFINE_ROUNDS rounds of coordinate steps inside the
+# bounds. The seed's transition from stick to full slip happens well below the sliding
+# speeds of an identification trace: v_t is at most a tenth of the top speed (the
+# level is then within 2 % of C_v at a fifth of it), so that the slip level cannot stand
+# in for a viscous law over the trace's speeds.
+SLIP_LEVELS = (1.15, 1.4, 1.9)
+SLIP_LEVEL_RANGE = (1.0, 3.0)
+MIN_TRANSITION_M_S = 1e-7
+TRANSITION_FRACTIONS = (1 / 5000, 1 / 10)
+TRANSITION_POINTS = 4
+REFINE_ROUNDS = 8
+REFINE_STEPS = ((0.1, 2.0), (0.05, 1.4), (0.02, 1.15))  # C_v +-, v_t x/ (shrinking)
+
+
+@dataclass(frozen=True)
+class FittedPart:
+    """One part with the baseline's columns and its path quantities."""
+
+    part: Part
+    phi: FloatArray  # the GMS columns of the basis
+    base: Columns  # phi (+ acceleration for a drive force)
+    ctx: fx.Context  # path quantities, the GMS force the baseline's
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """The output of :func:`fit_baseline`."""
+
+    prepared: Prepared
+    basis: Basis
+    parts: tuple[FittedPart, ...]
+    theta: FloatArray
+    info: dict[str, Any]
+    gms: GmsParams
+    predictions: tuple[FloatArray, ...]
+    heldout_rms_N: float
+    presliding_m: float
+    sliding_force_N: float
+
+    @property
+    def n_gms(self) -> int:
+        """How many of the coefficients are the GMS's."""
+        return self.parts[0].phi.shape[1]
+
+    def to_json(self) -> dict[str, Any]:
+        """The calibrated baseline's parameters for the diagnosis JSON."""
+        return {
+            "model": "free_nnls_gms" if isinstance(self.basis, FreeBasis) else "table_gms",
+            **self.info,
+            "force_kind": self.prepared.force_kind,
+            "breakaway_m": self.basis.breakaway_m.tolist(),
+            "limit_N": self.gms.limit_N.tolist(),
+            "slip_level": self.gms.slip_level,
+            "transition_velocity_m_s": self.gms.transition_velocity_m_s,
+            "sliding_force_N": self.sliding_force_N,
+            "presliding_m": self.presliding_m,
+            "mass_kg": float(self.theta[self.n_gms]) if self.prepared.drive else 0.0,
+        }
+
+
+def _designs(
+    prepared: Prepared, basis: Basis, viscous: bool = False
+) -> list[tuple[FloatArray, Columns]]:
+    out = []
+    for p in prepared.parts:
+        phi = basis.columns(p.kin)
+        cols = [phi, p.kin.acceleration_m_s2[:, None]] if prepared.drive else [phi]
+        if viscous:
+            cols.append(p.kin.velocity_m_s[:, None])
+        values = np.column_stack(cols)
+        out.append((phi, Columns(values, np.zeros(values.shape[1]))))
+    return out
+
+
+def _fit(
+    prepared: Prepared, basis: Basis, viscous: bool = False
+) -> tuple[list[PartDesign], FloatArray, float]:
+    designs = [
+        PartDesign(cols, p.force_N, p.train, p.held)
+        for p, (_, cols) in zip(prepared.parts, _designs(prepared, basis, viscous), strict=True)
+    ]
+    gram = GramDesign(designs)
+    theta = gram.fit()
+    return designs, theta, train_rms(designs, theta)
+
+
+def fit_free(prepared: Prepared, breakaway_m: FloatArray) -> FreeBasis:
+    """The free basis whose slip level and transition velocity fit the training rows
+    best, each trial's limits by non-negative least squares (bounded search).
+
+    A viscous term (c >= 0) is fitted beside them during the search and then dropped:
+    the slip level takes the velocity dependence that saturates, a linear one is left
+    to the catalogue's ``viscous`` (else C_v stands in for part of it)."""
+    vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in prepared.parts)
+    vt_range = _transition_range(vmax)
+    cache: dict[tuple[float, float], float] = {}
+
+    def cost(cv: float, vt: float) -> float:
+        key = (round(cv, 6), round(vt, 12))
+        if key not in cache:
+            cache[key] = _fit(prepared, FreeBasis(breakaway_m, cv, vt), viscous=True)[2]
+        return cache[key]
+
+    best = (cost(1.0, vt_range[1]), 1.0, vt_range[1])
+    for cv in SLIP_LEVELS:
+        for vt in np.geomspace(*vt_range, TRANSITION_POINTS):
+            best = min(best, (cost(cv, float(vt)), cv, float(vt)))
+    rounds = 0
+    for d_cv, f_vt in REFINE_STEPS if best[1] > 1.0 else ():
+        while rounds < REFINE_ROUNDS:
+            rounds += 1
+            start = best
+            for cv, vt in _neighbours(best[1], best[2], d_cv, f_vt, vt_range):
+                best = min(best, (cost(cv, vt), cv, vt))
+            if best == start:
+                break
+    return FreeBasis(breakaway_m, best[1], best[2])
+
+
+def _transition_range(vmax: float) -> tuple[float, float]:
+    hi = max(vmax * TRANSITION_FRACTIONS[1], 10 * MIN_TRANSITION_M_S)
+    return max(vmax * TRANSITION_FRACTIONS[0], MIN_TRANSITION_M_S), hi
+
+
+def _neighbours(
+    cv: float, vt: float, d_cv: float, f_vt: float, vt_range: tuple[float, float]
+) -> list[tuple[float, float]]:
+    """One coordinate step either way from (C_v, v_t), inside the bounds."""
+    lo, hi = SLIP_LEVEL_RANGE
+    return [(min(max(cv + d, lo), hi), vt) for d in (-d_cv, d_cv)] + [
+        (cv, min(max(vt * f, vt_range[0]), vt_range[1])) for f in (1 / f_vt, f_vt)
+    ]
+
+
+def fit_baseline(prepared: Prepared, cfg: DiagnosisConfig, table: GmsParams | None) -> Baseline:
+    """The free GMS with its slip level, or the calibrated ``table`` if its held-out RMS
+    is within ``cfg.table_margin`` (relative) of the free GMS's; ``info`` holds both RMS
+    values and the table's calibrated factors."""
+    grid = breakaway_grid(prepared.main.kin, cfg.n_elements, prepared.position_resolution_m)
+    free = fit_free(prepared, grid)
+    designs, theta, _ = _fit(prepared, free)
+    free_rms = rms(GramDesign(designs).held_residual(theta))
+    info: dict[str, Any] = {"source": "free_nnls", "free_nnls_heldout_rms_N": free_rms}
+    basis: Basis = free
+    if table is not None:
+        samples = [Samples(p.kin, p.force_N, p.train) for p in prepared.parts]
+        calibrated = calibrate_table(table, samples, prepared.drive)
+        t_designs, t_theta, _ = _fit(prepared, calibrated)
+        table_rms = rms(GramDesign(t_designs).held_residual(t_theta))
+        info.update(
+            table_heldout_rms_N=table_rms,
+            level_factor=float(t_theta[0]),
+            presliding_factor=calibrated.presliding_factor,
+            slip_level_factor=calibrated.slip_level_factor,
+            transition_velocity_m_s=calibrated.params.transition_velocity_m_s,
+        )
+        if table_rms <= (1.0 + cfg.table_margin) * free_rms:
+            basis, theta, info["source"] = calibrated, t_theta, "table"
+    return _baseline(prepared, basis, theta, info)
+
+
+def _baseline(
+    prepared: Prepared, basis: Basis, theta: FloatArray, info: dict[str, Any]
+) -> Baseline:
+    designs = _designs(prepared, basis)
+    n_gms = designs[0][0].shape[1]
+    gms = basis.gms(theta[:n_gms])
+    parts = []
+    for p, (phi, cols) in zip(prepared.parts, designs, strict=True):
+        ctx = fx.Context.along(
+            p.kin.time_s, p.kin.position_m, p.kin.velocity_m_s, p.kin.acceleration_m_s2,
+            phi @ theta[:n_gms], prepared.standstill_speed_m_s, prepared.reversal_deadband_m,
+        )  # fmt: skip
+        parts.append(FittedPart(p, phi, cols, ctx))
+    predictions = tuple(fp.base.values @ theta for fp in parts)
+    held = np.concatenate(
+        [
+            fp.part.force_N[fp.part.held] - y[fp.part.held]
+            for fp, y in zip(parts, predictions, strict=False)
+        ]
+    )
+    return Baseline(
+        prepared=prepared,
+        basis=basis,
+        parts=tuple(parts),
+        theta=theta,
+        info=info,
+        gms=gms,
+        predictions=predictions,
+        heldout_rms_N=rms(held),
+        presliding_m=presliding_length(gms),
+        sliding_force_N=float(np.sum(gms.limit_N)) * gms.slip_level,
+    )
+
+
+def refit_gms_force(parts: tuple[FittedPart, ...], theta: FloatArray) -> tuple[FittedPart, ...]:
+    """The parts with their path context's GMS force from the coefficients ``theta``."""
+    n = parts[0].phi.shape[1]
+    return tuple(
+        dataclasses.replace(fp, ctx=dataclasses.replace(fp.ctx, gms_force_N=fp.phi @ theta[:n]))
+        for fp in parts
+    )
+
+
+def rebased(baseline: Baseline, basis: Basis) -> tuple[FittedPart, ...]:
+    """The baseline's parts on another basis (the same path quantities; the GMS force
+    that basis fits alone)."""
+    designs = _designs(baseline.prepared, basis)
+    parts = tuple(
+        dataclasses.replace(fp, phi=phi, base=cols)
+        for fp, (phi, cols) in zip(baseline.parts, designs, strict=True)
+    )
+    gram = GramDesign(
+        [PartDesign(fp.base, fp.part.force_N, fp.part.train, fp.part.held) for fp in parts]
+    )
+    return refit_gms_force(parts, gram.fit())
+
+
+def refine_slip_level(
+    baseline: Baseline, cost: Callable[[tuple[FittedPart, ...]], float]
+) -> FreeBasis | None:
+    """The free basis's slip level and transition velocity searched again with ``cost``
+    (the training RMS with the kept effects present): bounded coordinate steps from the
+    baseline's, or None for a table baseline."""
+    basis = baseline.basis
+    if not isinstance(basis, FreeBasis):
+        return None
+    vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in baseline.prepared.parts)
+    vt_range = _transition_range(vmax)
+    best = (cost(baseline.parts), basis.slip_level, basis.transition_velocity_m_s)
+    rounds = 0
+    for d_cv, f_vt in REFINE_STEPS[1:]:  # from near the blind baseline's optimum
+        while rounds < REFINE_ROUNDS:
+            rounds += 1
+            start = best
+            for cv, vt in _neighbours(best[1], best[2], d_cv, f_vt, vt_range):
+                trial = FreeBasis(basis.breakaway_m, cv, vt)
+                best = min(best, (cost(rebased(baseline, trial)), cv, vt))
+            if best == start:
+                break
+    return FreeBasis(basis.breakaway_m, best[1], best[2])

@@ -1,0 +1,169 @@
+"""Stage 3: the catalogue effects as candidate extensions of the baseline's design.
+
+An :class:`Option` is a catalogue effect with its shape fixed: extra design columns (an
+additive effect, with its coefficient bound from the catalogue) or a filter of every
+column (a sensor low-pass, a drive lag). A :class:`Scorer` holds the design of the
+effects chosen so far and scores one more option on it by held-out RMS, reusing the
+design's training Gram matrix for additive options (:class:`~.design.GramDesign`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from gms_comp.measured.diagnosis.baseline import FittedPart
+from gms_comp.measured.diagnosis.design import (
+    BoolArray,
+    Columns,
+    FloatArray,
+    GramDesign,
+    PartDesign,
+    rms,
+)
+from gms_comp.runtime import effects as fx
+
+# A basis value below this fraction of its largest magnitude counts as "not acting".
+SUPPORT_FRACTION = 1e-3
+
+
+@dataclass(frozen=True)
+class Option:
+    """An effect with fixed shape: how it changes the design."""
+
+    effect: type[fx.Effect]
+    shape: dict[str, float]
+
+    @property
+    def is_filter(self) -> bool:
+        """Whether the effect filters the whole force."""
+        return issubclass(self.effect, fx.FilterEffect)
+
+    def filter_effect(self) -> fx.FilterEffect:
+        """The filter this option is (only for a filter option)."""
+        assert issubclass(self.effect, fx.FilterEffect)
+        return self.effect.from_shape(self.shape)
+
+    def columns(self, fp: FittedPart, filters: Sequence[Option] = ()) -> Columns:
+        """The additive option's columns on ``fp``, through the chosen ``filters``."""
+        values = self.effect.basis(fp.ctx, self.shape)
+        for f in filters:
+            values = f.filter_effect().filter_columns(values, fp.ctx.sample_time_s)
+        return Columns(values, np.full(values.shape[1], self.effect.COEFFICIENT_LOWER))
+
+    def with_value(self, key: str, value: float) -> Option:
+        """The option with one shape parameter changed."""
+        return Option(self.effect, {**self.shape, key: value})
+
+
+def options(
+    effect: type[fx.Effect], fp: FittedPart, residual_N: FloatArray, presliding_m: float
+) -> list[Option]:
+    """The effect's shape grid as options (``residual_N``: what the design leaves)."""
+    return [Option(effect, s) for s in effect.shape_grid(fp.ctx, residual_N, presliding_m)]
+
+
+def design(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> list[PartDesign]:
+    """Each part's design with the ``chosen`` options (filters applied last, to all)."""
+    filters = [o for o in chosen if o.is_filter]
+    out = []
+    for fp in parts:
+        cols = fp.base
+        for f in filters:
+            cols = Columns(f.filter_effect().filter_columns(cols.values, fp.ctx.sample_time_s),
+                           cols.lower)  # fmt: skip
+        for opt in chosen:
+            if not opt.is_filter:
+                cols = cols + opt.columns(fp, filters)
+        out.append(PartDesign(cols, fp.part.force_N, fp.part.train, fp.part.held))
+    return out
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One option scored on the design of the chosen ones."""
+
+    option: Option
+    heldout_rms_N: float
+    theta: FloatArray
+    held_residual_N: FloatArray
+    support: BoolArray  # the held-out rows where the option acts
+
+
+class Scorer:
+    """Trials of one more option on top of the design of ``chosen``.
+
+    Parameters
+    ----------
+    parts
+        The baseline's parts (their path contexts carry the GMS force to scale).
+    chosen
+        The options kept so far.
+    """
+
+    def __init__(self, parts: Sequence[FittedPart], chosen: Sequence[Option]) -> None:
+        self.parts = tuple(parts)
+        self.chosen = tuple(chosen)
+        self.filters = [o for o in chosen if o.is_filter]
+        self.designs = design(parts, chosen)
+        self.gram = GramDesign(self.designs)
+        self.theta = self.gram.fit()
+        self.held_residual_N = self.gram.held_residual(self.theta)
+        self.heldout_rms_N = rms(self.held_residual_N)
+        self._all_held = np.ones(self.held_residual_N.size, dtype=bool)
+
+    def model(self, index: int = 0) -> FloatArray:
+        """The current design's force on part ``index``."""
+        return self.designs[index].columns.values @ self.theta
+
+    def score(self, opt: Option) -> Trial:
+        """``opt`` added to the chosen options, fitted on training, scored held out."""
+        if opt.is_filter:
+            gram = GramDesign(design(self.parts, [*self.chosen, opt]))
+            theta = gram.fit()
+            held = gram.held_residual(theta)
+            return Trial(opt, rms(held), theta, held, self._all_held)
+        extra = [opt.columns(fp, self.filters) for fp in self.parts]
+        theta, held = self.gram.trial(extra)
+        support = np.concatenate(
+            [_acting(e.values[fp.part.held]) for e, fp in zip(extra, self.parts, strict=True)]
+        )
+        return Trial(opt, rms(held), theta, held, support)
+
+    def change(self, trial: Trial) -> FloatArray:
+        """How much ``trial`` changes the model force on the main part."""
+        if trial.option.is_filter:
+            new = design(self.parts, [*self.chosen, trial.option])[0].columns.values
+            return new @ trial.theta - self.model()
+        m = self.theta.size
+        extra = trial.option.columns(self.parts[0], self.filters).values
+        base = self.designs[0].columns.values
+        return base @ trial.theta[:m] + extra @ trial.theta[m:] - self.model()
+
+
+def _acting(values: FloatArray) -> BoolArray:
+    size = np.max(np.abs(values), axis=0)
+    return np.any(np.abs(values) > SUPPORT_FRACTION * np.where(size > 0, size, np.inf), axis=1)
+
+
+def effect_of(
+    opt: Option, chosen: Sequence[Option], theta: FloatArray, base_width: int,
+    widths: Sequence[int],
+) -> fx.Effect:  # fmt: skip
+    """The effect with the coefficients ``theta`` holds for ``opt`` in the design of
+    ``chosen`` (``widths``: the column count of each chosen option, 0 for a filter)."""
+    if opt.is_filter:
+        return opt.filter_effect()
+    start = base_width
+    for other, width in zip(chosen, widths, strict=True):
+        if other is opt:
+            return opt.effect.from_coefficients(theta[start : start + width], opt.shape)
+        start += width
+    raise AssertionError("option not in the design")
+
+
+def widths(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> list[int]:
+    """The column count of each chosen option on the main part (0 for a filter)."""
+    return [0 if o.is_filter else o.columns(parts[0]).values.shape[1] for o in chosen]

@@ -1,0 +1,57 @@
+"""The ``[diagnosis]`` section: margins, bounds and sizes of the diagnosis."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from gms_comp.config import in_range, parse_section, positive, read_toml
+
+
+@dataclass(frozen=True)
+class DiagnosisConfig:
+    """The ``[diagnosis]`` section of a config file."""
+
+    # 0: automatic - almost no filtering for a friction force (presliding after a
+    # reversal takes a few samples), the benchmark's 100 Hz for a drive force (it needs
+    # an acceleration).
+    filter_cutoff_Hz: float = field(default=0.0, metadata=in_range(0.0, 1e9))
+    n_elements: int = field(default=8, metadata=in_range(1, 40))
+    n_blocks: int = field(default=10, metadata=in_range(3, 1000))
+    # An effect is kept if it lowers the held-out RMS by more than ``margin`` (relative),
+    # or by more than ``small_margin`` with a t statistic over held-out chunks of at
+    # least ``significance_t`` (a small but consistent gain, e.g. diluted by a large
+    # unexplained part; the t test alone rejects large gains confined to a few chunks).
+    margin: float = field(default=0.05, metadata=in_range(0.0, 1.0))
+    small_margin: float = field(default=0.01, metadata=in_range(0.0, 1.0))
+    significance_t: float = field(default=4.0, metadata=in_range(0.0, 1e3))
+    # An effect that acts on few samples (a dwell gain at break-aways) is judged where it
+    # acts: kept if it lowers the held-out RMS there by more than ``local_margin``
+    # (relative) with the same t statistic over its events.
+    local_margin: float = field(default=0.2, metadata=in_range(0.0, 1.0))
+    # ... and only if it changes the model force by at least this fraction of the sliding
+    # force (smaller terms do not matter for compensation; on clean traces they are the
+    # free GMS's mismatch with the true one).
+    min_effect_fraction: float = field(default=0.02, metadata=in_range(0.0, 1.0))
+    max_effects: int = field(default=6, metadata=in_range(1, 9))
+    # ``unknown``: what is left after the best extension still has structure (its mean
+    # over bins of phase, velocity, position, time, or a tone) of at least
+    # ``unknown_ratio`` x the noise and ``unknown_fraction`` x the sliding force.
+    unknown_ratio: float = field(default=3.0, metadata=positive())
+    unknown_fraction: float = field(default=0.04, metadata=in_range(0.0, 1.0))
+    standstill_speed_fraction: float = field(default=0.01, metadata=in_range(0.0, 1.0))
+    # A reversal is a retreat of more than this many position steps: filter ringing after
+    # an encoder step is a fraction of a step (raise it above 1 for an encoder that
+    # dithers by a count at a standstill).
+    reversal_deadband_steps: float = field(default=0.6, metadata=in_range(0.0, 1e3))
+    # A calibrated GMS table is the baseline if its held-out RMS is at most this much
+    # (relative) above the free NNLS GMS's: its parameters mean something, the free
+    # GMS's a little better fit on the training trace may be its flexibility only.
+    table_margin: float = field(default=0.1, metadata=in_range(0.0, 10.0))
+
+
+def load_diagnosis_config(path: str | Path | None) -> DiagnosisConfig:
+    """The ``[diagnosis]`` section of the config file ``path`` (defaults without one)."""
+    if path is None:
+        return DiagnosisConfig()
+    return parse_section(read_toml(path), path, "diagnosis", DiagnosisConfig)

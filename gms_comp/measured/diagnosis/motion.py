@@ -1,0 +1,67 @@
+"""Kinematics of a measured trace and the benchmark's signal processing.
+
+Velocity and acceleration come from the measured position the way the EMPS benchmark
+(Janot, Gautier, Brunot 2019) derives them: a zero-phase 4th-order Butterworth low-pass
+(MATLAB ``filtfilt`` edge padding) and central differences. :func:`decimate_matlab`
+reproduces MATLAB's ``decimate`` (Chebyshev-I order 8, forward-backward, the last sample
+kept), which the benchmark applies before least squares and before its error norms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import signal
+
+from gms_comp.measured.traces import Trace
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    """Filtered position and its derivatives on the trace's time base."""
+
+    time_s: FloatArray
+    position_m: FloatArray
+    velocity_m_s: FloatArray
+    acceleration_m_s2: FloatArray
+
+    def __len__(self) -> int:
+        return len(self.time_s)
+
+    def slice(self, start: int, stop: int | None = None) -> Kinematics:
+        s = slice(start, stop)
+        return Kinematics(
+            self.time_s[s], self.position_m[s], self.velocity_m_s[s], self.acceleration_m_s2[s]
+        )
+
+
+def filtfilt_matlab(b: FloatArray, a: FloatArray, x: FloatArray) -> FloatArray:
+    """Zero-phase filtering with MATLAB's edge padding of 3 x (filter order) samples."""
+    return np.asarray(signal.filtfilt(b, a, x, padlen=3 * (max(len(a), len(b)) - 1)))
+
+
+def decimate_matlab(x: FloatArray, factor: int) -> FloatArray:
+    """MATLAB ``decimate(x, factor)``: Chebyshev-I low-pass, zero phase, keep the last sample."""
+    b, a = signal.cheby1(8, 0.05, 0.8 / factor)
+    y = filtfilt_matlab(b, a, x)
+    n_out = -(-len(x) // factor)
+    first = factor - (factor * n_out - len(x)) - 1
+    return y[first::factor]
+
+
+def kinematics(trace: Trace, cutoff_Hz: float) -> Kinematics:
+    """Position low-passed at ``cutoff_Hz`` (zero phase), velocity and acceleration by
+    central differences; a measured velocity column is not used, so that position,
+    velocity and acceleration share one filter."""
+    dt = trace.sample_time_s
+    nyquist_Hz = 0.5 / dt
+    wn = min(cutoff_Hz / nyquist_Hz, 0.99)
+    b, a = signal.butter(4, wn)
+    x = filtfilt_matlab(b, a, trace.position_m)
+    v = np.gradient(x, dt)
+    return Kinematics(trace.time_s, x, v, np.gradient(v, dt))

@@ -1,0 +1,147 @@
+"""Stage 1: a trace (and its validation trace) made ready for fitting.
+
+Kinematics from the measured position, training and held-out rows, the standstill speed
+and the reversal dead band, and a refusal of traces a diagnosis cannot use (constant or
+zero force, no reversal, a single speed), saying what the trace lacks and what to
+record instead.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.design import BoolArray, FloatArray
+from gms_comp.measured.diagnosis.motion import Kinematics, kinematics
+from gms_comp.measured.traces import ForceKind, Trace
+from gms_comp.validation import InputError
+
+DRIVE_CUTOFF_HZ = 100.0
+# A trace must reverse at least this often, and its moving speeds must spread over at
+# least this ratio (90th over 10th percentile), to separate the effects.
+MIN_REVERSALS = 2
+MIN_SPEED_SPREAD = 1.5
+# A force whose spread is below this fraction of its magnitude is constant.
+CONSTANT_FORCE_FRACTION = 1e-9
+
+
+@dataclass(frozen=True)
+class Part:
+    """One trace prepared for fitting: kinematics, force, training and held-out rows."""
+
+    kin: Kinematics
+    force_N: FloatArray
+    train: BoolArray
+    held: BoolArray
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """The output of :func:`prepare`: the parts (the trace, then any validation trace)."""
+
+    parts: tuple[Part, ...]
+    drive: bool
+    force_kind: ForceKind
+    standstill_speed_m_s: float
+    reversal_deadband_m: float
+    position_resolution_m: float
+
+    @property
+    def main(self) -> Part:
+        """The trace the diagnosis is about (its residuals, phases and plots)."""
+        return self.parts[0]
+
+
+def position_resolution(position_m: FloatArray) -> float:
+    """The smallest position step the sensor reports (the 5th percentile of the
+    nonzero steps of the raw position)."""
+    steps = np.abs(np.diff(position_m))
+    steps = steps[steps > 0]
+    return float(np.percentile(steps, 5)) if steps.size else 0.0
+
+
+def prepare(
+    trace: Trace, force_kind: ForceKind, validation: Trace | None, cfg: DiagnosisConfig
+) -> Prepared:
+    """The parts of ``trace`` (held-out: every third of ``cfg.n_blocks`` blocks, so both
+    parts hold every kind of motion) or of ``trace`` and ``validation`` (held out whole).
+
+    Raises
+    ------
+    InputError
+        When a trace lacks what a diagnosis needs.
+    """
+    drive = force_kind == "drive"
+    cutoff = cfg.filter_cutoff_Hz or (DRIVE_CUTOFF_HZ if drive else 0.45 / trace.sample_time_s)
+    kin = kinematics(trace, cutoff)
+    resolution = position_resolution(trace.position_m)
+    deadband = cfg.reversal_deadband_steps * resolution
+    still = cfg.standstill_speed_fraction * float(np.max(np.abs(kin.velocity_m_s)))
+    check_usable(trace, kin, deadband, still)
+    n = len(trace)
+    if validation is None:
+        held = (np.arange(n) * cfg.n_blocks // n) % 3 == 1
+        parts: tuple[Part, ...] = (Part(kin, trace.force_N, ~held, held),)
+    else:
+        vkin = kinematics(validation, cutoff)
+        check_usable(validation, vkin, deadband, still)
+        m = len(validation)
+        parts = (
+            Part(kin, trace.force_N, np.ones(n, dtype=bool), np.zeros(n, dtype=bool)),
+            Part(vkin, validation.force_N, np.zeros(m, dtype=bool), np.ones(m, dtype=bool)),
+        )
+    return Prepared(parts, drive, force_kind, still, deadband, resolution)
+
+
+def check_usable(trace: Trace, kin: Kinematics, deadband_m: float, still_m_s: float) -> None:
+    """Refuse a trace without a varying force, reversals, or several speeds."""
+    force = trace.force_N
+    size = float(np.max(np.abs(force)))
+    if size == 0.0:
+        raise InputError(
+            trace.source, "force_N",
+            "the force is zero throughout (a disconnected sensor?): record the friction or "
+            "drive force while the axis moves back and forth",
+        )  # fmt: skip
+    if float(np.ptp(force)) <= CONSTANT_FORCE_FRACTION * size:
+        raise InputError(
+            trace.source, "force_N",
+            f"the force is constant ({force[0]:.6g} N): a diagnosis needs the force to follow "
+            "the motion; check the sensor and record back-and-forth strokes",
+        )  # fmt: skip
+    x = kin.position_m
+    extreme_turns = _reversals(x, max(deadband_m, 1e-12))
+    if extreme_turns < MIN_REVERSALS:
+        raise InputError(
+            trace.source, "position_m",
+            f"the axis reverses {extreme_turns} time(s): a diagnosis needs presliding after "
+            "reversals; record back-and-forth strokes (e.g. gms-comp profile)",
+        )  # fmt: skip
+    speed = np.abs(kin.velocity_m_s)
+    moving = speed[speed > max(still_m_s, 1e-12)]
+    lo, hi = np.percentile(moving, [10, 90]) if moving.size else (0.0, 0.0)
+    if hi <= MIN_SPEED_SPREAD * lo:
+        raise InputError(
+            trace.source, "velocity",
+            f"the axis moves at one speed only ({1e3 * float(np.median(moving)):.3g} mm/s): "
+            "record strokes at several speeds (e.g. 5, 20 and 50 mm/s) to separate "
+            "velocity-dependent effects",
+        )  # fmt: skip
+
+
+def _reversals(x: FloatArray, deadband_m: float) -> int:
+    """How often ``x`` retreats by more than ``deadband_m`` from its furthest point."""
+    count, direction, extreme = 0, 0.0, float(x[0])
+    # the trace decimated to at most 20 000 points keeps every stroke of interest
+    for xi in x[:: max(1, x.size // 20000)]:
+        step = float(xi) - extreme
+        if direction == 0.0:
+            if abs(step) > deadband_m:
+                direction, extreme = float(np.sign(step)), float(xi)
+        elif step * direction >= 0.0:
+            extreme = float(xi)
+        elif -step * direction > deadband_m:
+            direction, extreme, count = -direction, float(xi), count + 1
+    return count

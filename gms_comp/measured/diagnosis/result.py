@@ -1,0 +1,81 @@
+"""Stage 6b: the diagnosis record, its verdict and its JSON (the spec's keys)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from gms_comp.gms import GmsParams
+from gms_comp.measured.diagnosis.design import FloatArray
+from gms_comp.measured.diagnosis.refit import Ranked
+from gms_comp.measured.diagnosis.structure import Structure
+from gms_comp.runtime import effects as fx
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Result of :func:`~gms_comp.measured.diagnosis.run.diagnose`; :meth:`to_json` gives the
+    spec's keys.
+
+    ``effect`` is the first kept effect's name, ``none`` when nothing was kept and the
+    residual is noise-like, or ``unknown`` when the residual left by the best extension
+    still has structure (``structure`` says where; ``ranked`` then holds the partial
+    candidates).
+    """
+
+    effect: str
+    ranked: tuple[Ranked, ...]
+    baseline_rms_N: float
+    extended_rms_N: float
+    baseline: dict[str, Any]
+    phases: dict[str, dict[str, float]]
+    base_gms: GmsParams  # the baseline's GMS, without the effects' refit
+    gms: GmsParams
+    extensions: tuple[fx.Effect, ...]
+    structure: Structure
+    tried: list[dict[str, Any]]  # the best trial of every effect in the last round
+    series: dict[str, FloatArray]  # for the report's plots
+    seconds: float
+
+    @property
+    def noise_rms_N(self) -> float:
+        """The noise estimated from the extended model's held-out residual."""
+        return self.structure.noise_rms_N
+
+    @property
+    def gain(self) -> float:
+        """1 - extended / baseline held-out RMS."""
+        return 1.0 - self.extended_rms_N / self.baseline_rms_N if self.baseline_rms_N else 0.0
+
+    def to_json(self) -> dict[str, Any]:
+        """The spec's keys (and the structure, the candidates tried, the run time)."""
+        named = self.effect not in ("none", "unknown")
+        return {
+            "effect": self.effect,
+            "effects": [
+                {
+                    "effect": c.effect.name,
+                    "parameters": c.effect.parameters(),
+                    "heldout_rms_N": c.heldout_rms_N,
+                }
+                for c in self.ranked
+            ],
+            "parameters": self.ranked[0].effect.parameters() if named else {},
+            "baseline_rms_N": self.baseline_rms_N,
+            "extended_rms_N": self.extended_rms_N,
+            "gain": self.gain,
+            "noise_rms_N": self.noise_rms_N,
+            "baseline": self.baseline,
+            "phases": self.phases,
+            "structure": self.structure.to_json(),
+            "candidates_tried": self.tried,
+            "seconds": self.seconds,
+        }
+
+
+def verdict(ranked: tuple[Ranked, ...], structure: Structure) -> str:
+    """The named cause: ``unknown`` when structure is left, else the first kept effect,
+    else ``none``."""
+    if structure.structured:
+        return "unknown"
+    return ranked[0].effect.name if ranked else "none"

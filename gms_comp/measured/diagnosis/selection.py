@@ -1,0 +1,170 @@
+"""Stage 4: forward selection of catalogue effects on held-out samples.
+
+Each round scores every remaining effect over its shape grid on the design of the
+effects kept so far, refines the best shape of each effect that helps by a bounded local
+search, and keeps the admissible effect with the lowest held-out RMS. An effect is
+admissible if it lowers the held-out RMS by more than ``margin`` (relative), or by a
+smaller but significant step (t statistic over held-out chunks); an effect that acts on
+few samples (a dwell gain at break-aways) is also judged where it acts; and in any case
+it must change the model force somewhere by ``min_effect_fraction`` of the sliding force
+(on clean traces tiny stray terms always lower the held-out error a little). Every
+search here is bounded: rounds by ``max_effects``, grids by the catalogue, local search
+by ``REFINE_STEPS`` x ``MAX_PASSES`` inside each effect's shape bounds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from gms_comp.measured.diagnosis.baseline import Baseline
+from gms_comp.measured.diagnosis.candidates import Option, Scorer, Trial, options
+from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.design import FloatArray, rms
+from gms_comp.runtime import effects as fx
+
+# Relative steps of the local search on shape parameters after the grid, and the most
+# passes over the parameters at each step.
+REFINE_STEPS = (1.3, 1.08)
+MAX_PASSES = 4
+# Contiguous chunks of held-out samples for the significance of an improvement.
+SIGNIFICANCE_CHUNKS = 20
+# An effect acting on less than this share of the held-out samples is judged there.
+LOCAL_SHARE = 0.25
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class Selection:
+    """The output of :func:`select`: the kept options in the order taken, the held-out
+    RMS after each, and the best trial of every effect in the last round (for the
+    report: what was tried and not kept)."""
+
+    baseline: Baseline
+    chosen: tuple[Option, ...]
+    heldout_rms_N: tuple[float, ...]
+    last_round: tuple[Trial, ...]
+
+
+def local_search(
+    opt: Option, cost: Callable[[Option], float], start_cost: float,
+    bounds: dict[str, tuple[float, float]],
+) -> tuple[Option, float]:  # fmt: skip
+    """Bounded local search on ``opt``'s shape parameters (relative steps shrinking from
+    the grids' spacing, each value kept inside ``bounds``, at most ``MAX_PASSES`` passes
+    per step), so that they are not limited to the grid."""
+    best, best_cost = opt, start_cost
+    for step in REFINE_STEPS:
+        for _ in range(MAX_PASSES):
+            improved = False
+            for key in opt.shape:
+                if key == "order":
+                    continue
+                lo, hi = bounds.get(key, (0.0, np.inf))
+                for factor in (1.0 / step, step):
+                    value = float(np.clip(best.shape[key] * factor, lo, hi))
+                    if value == best.shape[key]:
+                        continue
+                    trial = best.with_value(key, value)
+                    trial_cost = cost(trial)
+                    if trial_cost < best_cost:
+                        best, best_cost, improved = trial, trial_cost, True
+            if not improved:
+                break
+    return best, best_cost
+
+
+def significance(current: FloatArray, new: FloatArray) -> float:
+    """t statistic of the drop in squared residual, over contiguous chunks (residuals
+    are correlated in time, chunks much less so)."""
+    n = min(SIGNIFICANCE_CHUNKS, current.size // 2)
+    if n < 2:
+        return 0.0
+    gain = np.array([np.mean(c) for c in np.array_split(current**2 - new**2, n)])
+    spread = float(np.std(gain, ddof=1)) / np.sqrt(gain.size)
+    return float(np.mean(gain)) / spread if spread > 0 else np.inf
+
+
+def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: float) -> bool:
+    """Whether ``trial`` is worth an effect (see the module docstring)."""
+    rms0, held0 = scorer.heldout_rms_N, scorer.held_residual_N
+    if trial.heldout_rms_N >= rms0:
+        return False
+    worth = trial.heldout_rms_N <= (1.0 - cfg.margin) * rms0 or (
+        trial.heldout_rms_N <= (1.0 - cfg.small_margin) * rms0
+        and significance(held0, trial.held_residual_N) >= cfg.significance_t
+    )
+    support = trial.support
+    if not worth and 0 < np.count_nonzero(support) < LOCAL_SHARE * support.size:
+        local0, local1 = held0[support], trial.held_residual_N[support]
+        worth = (
+            rms(local1) <= (1.0 - cfg.local_margin) * rms(local0)
+            and significance(local0, local1) >= cfg.significance_t
+        )
+    if not worth:
+        return False
+    return float(np.max(np.abs(scorer.change(trial)))) >= cfg.min_effect_fraction * level_N
+
+
+def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None = None) -> Selection:
+    """Forward selection of catalogue effects (see the module docstring)."""
+    drive = baseline.prepared.drive
+    # a drive force has its mass in the baseline; only a drive command can lead the force
+    pool = [e for e in fx.CATALOGUE.values() if e is not (fx.Inertia if drive else fx.DriveLag)]
+    chosen: list[Option] = []
+    history: list[float] = []
+    last: list[Trial] = []
+    parts = baseline.parts
+    level = baseline.sliding_force_N
+    while pool and len(chosen) < cfg.max_effects:
+        scorer = Scorer(parts, chosen)
+        residual = parts[0].part.force_N - scorer.model()
+        last = []
+        for i, effect in enumerate(pool):
+            if progress:
+                progress(f"round {len(chosen) + 1}: {effect.name} ({i + 1}/{len(pool)})")
+            trials = [scorer.score(o) for o in options(effect, parts[0], residual,
+                                                      baseline.presliding_m)]  # fmt: skip
+            if not trials:
+                continue
+            best = min(trials, key=lambda t: t.heldout_rms_N)
+            if best.heldout_rms_N < scorer.heldout_rms_N:
+                best = _refine(scorer, best, baseline.presliding_m)
+            last.append(best)
+        kept = [t for t in last if admissible(cfg, scorer, t, level)]
+        if not kept:
+            break
+        take = min(kept, key=lambda t: t.heldout_rms_N)
+        chosen.append(take.option)
+        history.append(take.heldout_rms_N)
+        pool.remove(take.option.effect)
+    return Selection(baseline, tuple(chosen), tuple(history), tuple(last))
+
+
+def _refine(scorer: Scorer, best: Trial, presliding_m: float) -> Trial:
+    trials: dict[int, Trial] = {}
+
+    def cost(opt: Option) -> float:
+        trial = scorer.score(opt)
+        trials[id(opt)] = trial
+        return trial.heldout_rms_N
+
+    bounds = best.option.effect.shape_bounds(scorer.parts[0].ctx, presliding_m)
+    opt, _ = local_search(best.option, cost, best.heldout_rms_N, bounds)
+    return best if opt is best.option else trials[id(opt)]
+
+
+def describe_trials(trials: Sequence[Trial], baseline_rms_N: float) -> list[dict[str, object]]:
+    """The best trial of each effect as JSON (effect, shape, held-out RMS, gain)."""
+    return [
+        {
+            "effect": t.option.effect.name,
+            "shape": dict(t.option.shape),
+            "heldout_rms_N": t.heldout_rms_N,
+            "gain": 1.0 - t.heldout_rms_N / baseline_rms_N if baseline_rms_N else 0.0,
+        }
+        for t in sorted(trials, key=lambda t: t.heldout_rms_N)
+    ]

@@ -1,0 +1,169 @@
+"""Stage 6a: is what the extended model leaves noise, or structure no effect explains?
+
+The held-out residual is averaged over bins of each quantity a friction effect could
+depend on: motion phase, velocity, position and direction, time; and searched for a
+tone. The RMS of those bin means (less what the noise alone gives them) is the part of
+the residual that depends on the quantity. If the largest such part stands well above
+the noise and is a noticeable share of the sliding force, the diagnosis is ``unknown``:
+the catalogue's best extension does not explain the trace, and the findings say in
+words where the residual lives.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from gms_comp.measured.diagnosis.baseline import FittedPart
+from gms_comp.measured.diagnosis.design import BoolArray, FloatArray, rms
+from gms_comp.measured.diagnosis.phases import phase_masks
+
+BINS = 16
+POSITION_BINS = 12
+# A tone counts when its peak stands this far above the median of the spectrum.
+TONE_PROMINENCE = 30.0
+TONE_HALF_WIDTH = 2  # bins either side of the peak
+
+
+@dataclass(frozen=True)
+class Finding:
+    """How much of the residual depends on one quantity, and where it is largest."""
+
+    by: str
+    rms_N: float
+    where: str
+
+
+@dataclass(frozen=True)
+class Structure:
+    """The output of :func:`residual_structure`."""
+
+    noise_rms_N: float
+    findings: tuple[Finding, ...]  # largest first
+    structured: bool
+
+    def description(self) -> str:
+        """The structured findings in words (empty when the residual is noise-like)."""
+        if not self.structured:
+            return ""
+        big = [f for f in self.findings if f.rms_N >= 0.5 * self.findings[0].rms_N]
+        return "; ".join(f.where for f in big)
+
+    def to_json(self) -> dict[str, Any]:
+        """The findings for the diagnosis JSON."""
+        return {
+            "structured": self.structured,
+            "description": self.description(),
+            "noise_rms_N": self.noise_rms_N,
+            "by": {f.by: {"rms_N": f.rms_N, "where": f.where} for f in self.findings},
+        }
+
+
+def _grouped(residual: FloatArray, groups: FloatArray, noise: float) -> tuple[float, int, float]:
+    """RMS of the group means above the noise's share; the group with the largest
+    contribution and its mean."""
+    keys, inverse, counts = np.unique(groups, return_inverse=True, return_counts=True)
+    means = np.bincount(inverse, weights=residual) / counts
+    n = residual.size
+    power = float(np.sum(counts * means**2) / n - keys.size * noise**2 / n)
+    top = int(np.argmax(counts * means**2))
+    return float(np.sqrt(max(power, 0.0))), top, float(means[top])
+
+
+def _quantile_bins(x: FloatArray, n: int) -> FloatArray:
+    edges = np.quantile(x, np.linspace(0, 1, n + 1)[1:-1])
+    return np.searchsorted(edges, x).astype(np.float64)
+
+
+def _tone(residual: FloatArray, sample_time_s: float) -> tuple[float, float]:
+    """RMS and frequency of the strongest narrow tone of ``residual`` (0 if none)."""
+    if residual.size < 64:
+        return 0.0, 0.0
+    spectrum = np.abs(np.fft.rfft(residual - np.mean(residual))) ** 2
+    spectrum[0] = 0.0
+    k = int(np.argmax(spectrum))
+    if spectrum[k] < TONE_PROMINENCE * float(np.median(spectrum[1:])):
+        return 0.0, 0.0
+    band = spectrum[max(1, k - TONE_HALF_WIDTH) : k + TONE_HALF_WIDTH + 1]
+    power = 2.0 * float(np.sum(band)) / residual.size**2
+    return float(np.sqrt(power)), k / (residual.size * sample_time_s)
+
+
+def _longest_run(mask: BoolArray) -> slice:
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    starts, stops = edges[::2], edges[1::2]
+    i = int(np.argmax(stops - starts)) if starts.size else 0
+    return slice(int(starts[i]), int(stops[i])) if starts.size else slice(0, 0)
+
+
+def residual_structure(
+    parts: Sequence[FittedPart], predictions: Sequence[FloatArray], presliding_m: float,
+    level_N: float, ratio: float, fraction: float,
+) -> Structure:  # fmt: skip
+    """Where the held-out residual of ``predictions`` depends on phase, velocity,
+    position and direction, time, or holds a tone; ``structured`` when the largest part
+    is at least ``ratio`` x the noise and ``fraction`` x ``level_N``."""
+    res, vel, pos, dirn, t, phase = [], [], [], [], [], []
+    for j, (fp, y) in enumerate(zip(parts, predictions, strict=True)):
+        held = fp.part.held
+        res.append((fp.part.force_N - y)[held])
+        vel.append(fp.ctx.velocity_m_s[held])
+        pos.append(fp.ctx.position_m[held])
+        dirn.append(fp.ctx.direction[held])
+        t.append(fp.ctx.time_s[held] + 1e6 * j)
+        labels = np.full(held.size, -1.0)
+        for i, mask in enumerate(phase_masks(fp.ctx, presliding_m).values()):
+            labels[mask & (labels < 0)] = i + 100 * j
+        phase.append(labels[held])
+    r = np.concatenate(res)
+    noise = rms(np.diff(r)) / np.sqrt(2.0)
+    v, x, d = np.concatenate(vel), np.concatenate(pos), np.concatenate(dirn)
+    findings = [_phase_finding(r, np.concatenate(phase), parts, presliding_m, noise)]
+    moving = np.abs(v) > 0.01 * float(np.max(np.abs(v)))
+    if np.count_nonzero(moving) > 4 * BINS:
+        vb = _quantile_bins(v[moving], BINS)
+        size, top, mean = _grouped(r[moving], vb, noise)
+        v_top = float(np.median(v[moving][vb == np.unique(vb)[top]]))
+        where = f"(largest, {mean:+.3g} N, near {1e3 * v_top:+.3g} mm/s)"
+        findings.append(Finding("velocity", size, f"the level depends on the velocity {where}"))
+        xb = _quantile_bins(x[moving], POSITION_BINS) + POSITION_BINS * (d[moving] > 0)
+        size, top, mean = _grouped(r[moving], xb, noise)
+        key = np.unique(xb)[top]
+        x_top = float(np.median(x[moving][xb == key]))
+        way = "forward" if key >= POSITION_BINS else "backward"
+        split = _grouped(r[moving], (d[moving] > 0).astype(float), noise)[0]
+        words = "on the direction of motion and " if split >= 0.5 * size else ""
+        findings.append(Finding("position", size, f"the level depends {words}on the position "
+                                f"(largest, {mean:+.3g} N, near x = {1e3 * x_top:.4g} mm moving "
+                                f"{way})"))  # fmt: skip
+    tb = np.minimum((np.arange(r.size) * BINS) // r.size, BINS - 1).astype(float)
+    size, top, mean = _grouped(r, tb, noise)
+    t_all = np.concatenate(t)
+    t_top = float(np.median(t_all[tb == top]) % 1e6)
+    findings.append(Finding("time", size, f"the level drifts over time (largest, {mean:+.3g} N, "
+                            f"around t = {t_top:.3g} s)"))  # fmt: skip
+    main = parts[-1]  # the validation trace when there is one, else the trace
+    run = _longest_run(main.part.held)
+    first = int(np.count_nonzero(main.part.held[: run.start]))
+    tone, freq = _tone(res[-1][first : first + run.stop - run.start], main.ctx.sample_time_s)
+    findings.append(Finding("frequency", tone, f"a tone at {freq:.4g} Hz"))
+    findings.sort(key=lambda f: f.rms_N, reverse=True)
+    top_rms = findings[0].rms_N
+    structured = bool(top_rms >= ratio * noise and top_rms >= fraction * level_N)
+    return Structure(noise, tuple(findings), structured)
+
+
+def _phase_finding(
+    r: FloatArray, labels: FloatArray, parts: Sequence[FittedPart], presliding_m: float,
+    noise: float,
+) -> Finding:  # fmt: skip
+    size, top, mean = _grouped(r, labels, noise)
+    key = int(np.unique(labels)[top])
+    name = "no phase"
+    if key >= 0:
+        names = list(phase_masks(parts[key // 100].ctx, presliding_m))
+        name = names[key % 100].replace("_", " ")
+    return Finding("phase", size, f"the residual is largest in {name} (mean {mean:+.3g} N)")

@@ -1,0 +1,128 @@
+"""The interface of a catalogue effect: its form, parameters, fit columns, bounds, grids.
+
+An additive effect is a linear combination of *basis* columns whose shape depends on a
+few nonlinear parameters (the ripple's wavelength, the transient's length, ...):
+``force + basis(ctx, shape) @ coefficients``. The diagnosis fits the coefficients by
+bounded least squares over those same columns (``COEFFICIENT_LOWER`` holds the physical
+meaning: a Stribeck ratio is above 1, a transient amplitude positive), so a fitted effect
+and the one applied afterwards are one formula. A :class:`FilterEffect` is a linear
+filter of the whole force instead.
+
+The forms that scale the friction (stribeck, dwell_time, drift) act on the GMS force
+``ctx.gms_force_N``: in steady sliding a GMS force equals its element limits times the
+velocity level, so scaling the force is scaling the limits; at a break-away it scales the
+peak. That keeps the GMS kernel (:mod:`gms_comp.gms`) untouched.
+
+Adding an effect: one module in this package with a subclass of :class:`Effect` (its
+form, parameters, coefficient bound, shape grid and shape bounds) and one line in
+``gms_comp/effects/__init__.py``'s ``CATALOGUE``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass
+from typing import ClassVar
+
+import numpy as np
+from scipy import signal
+
+from gms_comp.runtime.effects.path import Context, FloatArray
+
+Shape = dict[str, float]
+
+
+@dataclass(frozen=True)
+class Effect:
+    """Base of the catalogue: ``force + basis(ctx, shape) @ coefficients``.
+
+    Subclasses name their nonlinear shape parameters in ``SHAPE``, map between the fitted
+    coefficients and their named parameters, and say where the diagnosis searches the
+    shape (:meth:`shape_grid`, :meth:`shape_bounds`).
+    """
+
+    name: ClassVar[str]
+    SHAPE: ClassVar[tuple[str, ...]] = ()
+    # An effect of the measurement chain, not of the contact: a compensator does not add it.
+    measurement_only: ClassVar[bool] = False
+    # Lower bound of every fitted coefficient (its physical meaning, held inside the fit).
+    COEFFICIENT_LOWER: ClassVar[float] = -math.inf
+
+    @classmethod
+    def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:
+        """Design columns of the effect along ``ctx`` for the shape parameters ``shape``."""
+        raise NotImplementedError
+
+    @classmethod
+    def from_coefficients(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Effect:
+        """The effect whose basis coefficients are ``coefficients``."""
+        raise NotImplementedError
+
+    def coefficients(self) -> FloatArray:
+        """The basis coefficients of this effect."""
+        raise NotImplementedError
+
+    @classmethod
+    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
+        """Candidate shapes the diagnosis tries (``residual_N``: what is left to explain)."""
+        return [{}]
+
+    @classmethod
+    def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
+        """The range of each shape parameter the diagnosis's local search may reach."""
+        return {}
+
+    def shape(self) -> Shape:
+        """The shape parameters of this effect."""
+        return {k: getattr(self, k) for k in self.SHAPE}
+
+    def parameters(self) -> dict[str, float]:
+        """All parameters by their spec names, SI units."""
+        return {k: float(v) for k, v in asdict(self).items()}
+
+    def apply(self, ctx: Context, force_N: FloatArray) -> FloatArray:
+        """The measured force this effect makes of ``force_N`` (batch)."""
+        return force_N + self.basis(ctx, self.shape()) @ self.coefficients()
+
+
+@dataclass(frozen=True)
+class FilterEffect(Effect):
+    """An effect that is a linear filter of the whole force (applied after the others)."""
+
+    @classmethod
+    def from_shape(cls, shape: Mapping[str, float]) -> FilterEffect:
+        """The filter with the parameters ``shape`` (a filter has no coefficients)."""
+        raise NotImplementedError
+
+    def filter(self, sample_time_s: float) -> tuple[FloatArray, FloatArray]:
+        """Numerator and denominator of the discrete filter."""
+        raise NotImplementedError
+
+    def apply(self, ctx: Context, force_N: FloatArray) -> FloatArray:
+        """The filtered force."""
+        return self.filter_columns(force_N, ctx.sample_time_s)
+
+    def filter_columns(self, x: FloatArray, sample_time_s: float) -> FloatArray:
+        """Filter along axis 0, starting at rest at the first sample's value."""
+        b, a = self.filter(sample_time_s)
+        zi = signal.lfilter_zi(b, a)
+        x0 = x[0]
+        zi_full = np.multiply.outer(zi, x0) if np.ndim(x0) else zi * x0
+        y, _ = signal.lfilter(b, a, x, axis=0, zi=zi_full)
+        return np.asarray(y)
+
+
+def top_speed(ctx: Context) -> float:
+    """The largest speed along ``ctx`` (m/s), at least a tiny positive number."""
+    return max(float(np.max(np.abs(ctx.velocity_m_s))), 1e-12)
+
+
+def duration(ctx: Context) -> float:
+    """The time ``ctx`` spans (s), at least one sample time."""
+    return max(float(ctx.time_s[-1] - ctx.time_s[0]), ctx.sample_time_s)
+
+
+def stroke(ctx: Context) -> float:
+    """The range of positions along ``ctx`` (m)."""
+    return float(np.ptp(ctx.position_m))

@@ -1,0 +1,51 @@
+"""``drift``: friction scaled by 1 + kappa (1 - exp(-t/tau)) (warm-up, run-in), kappa > -1
+(the friction keeps its sign)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from gms_comp.runtime.effects.base import Effect, Shape, duration
+from gms_comp.runtime.effects.path import Context, FloatArray
+
+
+@dataclass(frozen=True)
+class Drift(Effect):
+    """Relative change ``kappa`` of the friction over the time constant ``tau_s``."""
+
+    name: ClassVar[str] = "drift"
+    SHAPE: ClassVar[tuple[str, ...]] = ("tau_s",)
+    COEFFICIENT_LOWER: ClassVar[float] = -1.0
+    kappa: float
+    tau_s: float
+
+    @classmethod
+    def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:
+        """The GMS force times 1 - exp(-t/tau)."""
+        return (ctx.gms_force_N * -np.expm1(-ctx.elapsed_s / shape["tau_s"]))[:, None]
+
+    @classmethod
+    def from_coefficients(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Effect:
+        """The effect with ``kappa = coefficients[0]``."""
+        return cls(float(coefficients[0]), shape["tau_s"])
+
+    def coefficients(self) -> FloatArray:
+        """``[kappa]``."""
+        return np.array([self.kappa])
+
+    @classmethod
+    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
+        """Time constants from 1/50 to 2 trace lengths."""
+        t = duration(ctx)
+        return [{"tau_s": float(tau)} for tau in np.geomspace(t / 50, 2 * t, 10)]
+
+    @classmethod
+    def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
+        """tau within 1/200 and 2 trace lengths (a slower drift is a ramp: its kappa and
+        tau trade off and neither means anything)."""
+        t = duration(ctx)
+        return {"tau_s": (t / 200, 2 * t)}

@@ -1,0 +1,44 @@
+"""``drive_lag`` (beyond the spec's catalogue, drive-force traces only): the axis force
+follows the drive command with a first-order lag (current loop, motor inductance), so the
+recorded command leads the force: command = force + lag_s dforce/dt."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from gms_comp.runtime.effects.base import FilterEffect, Shape
+from gms_comp.runtime.effects.path import Context, FloatArray
+
+
+@dataclass(frozen=True)
+class DriveLag(FilterEffect):
+    """The command leads the force by the first-order lag ``lag_s``."""
+
+    name: ClassVar[str] = "drive_lag"
+    measurement_only: ClassVar[bool] = True
+    lag_s: float
+
+    @classmethod
+    def from_shape(cls, shape: Mapping[str, float]) -> FilterEffect:
+        """The lag ``lag_s``."""
+        return cls(float(shape["lag_s"]))
+
+    def filter(self, sample_time_s: float) -> tuple[FloatArray, FloatArray]:
+        """force + lag dforce/dt by a backward difference."""
+        r = self.lag_s / sample_time_s
+        return np.array([1.0 + r, -r]), np.array([1.0])
+
+    @classmethod
+    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
+        """Lags from 0.05 to 3 sample times."""
+        dt = ctx.sample_time_s
+        return [{"lag_s": float(lag)} for lag in np.geomspace(0.05 * dt, 3 * dt, 12)]
+
+    @classmethod
+    def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
+        """Lags within 0.01 and 10 sample times."""
+        return {"lag_s": (0.01 * ctx.sample_time_s, 10 * ctx.sample_time_s)}

@@ -1,0 +1,154 @@
+"""Path quantities along a trajectory: what a catalogue effect sees (:class:`Context`).
+
+Direction of motion, distance since the last reversal, length of the last standstill,
+distance since the motion resumed and time elapsed come from one numba per-sample routine
+that serves both the batch :meth:`Context.along` and the streaming
+:class:`~gms_comp.runtime.effects.stream.ExtensionStream`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+# Below this speed an axis counts as standing still unless a caller says otherwise.
+DEFAULT_STANDSTILL_SPEED_M_S = 1e-4
+
+# A standstill ends once the speed exceeds this multiple of the standstill speed.
+RESUME_FACTOR = 2.0
+
+# Layout of the path-state vector.
+(_FIRST, _PREV_X, _CUM, _DIR, _CUM_AT_REVERSAL, _STILL, _STILL_SINCE, _DWELL, _CUM_AT_RESUME,
+ _T0, _EXTREME, _CUM_AT_EXTREME, _N_STATE) = range(13)  # fmt: skip
+# Layout of one output row.
+_OUT_DIR, _OUT_S_REV, _OUT_DWELL, _OUT_S_START, _OUT_MOVING, _OUT_ELAPSED, N_OUT = range(7)
+
+
+@numba.njit(cache=True)
+def _direction_step(state: FloatArray, x: float, v: float, deadband: float) -> None:
+    """Direction of motion from the position: a reversal is a retreat of more than
+    ``deadband`` from the furthest point reached, and counts from that turning point
+    (so encoder steps and filter ringing at a standstill make no reversals)."""
+    d = state[_DIR]
+    if d == 0.0:
+        if v != 0.0:  # the first motion sets the direction; distances count from here
+            state[_DIR] = 1.0 if v > 0.0 else -1.0
+            state[_EXTREME] = x
+            state[_CUM_AT_EXTREME] = state[_CUM]
+            state[_CUM_AT_REVERSAL] = state[_CUM]
+    elif (x - state[_EXTREME]) * d >= 0.0:
+        state[_EXTREME] = x
+        state[_CUM_AT_EXTREME] = state[_CUM]
+    elif (state[_EXTREME] - x) * d > deadband:
+        state[_DIR] = -d
+        state[_CUM_AT_REVERSAL] = state[_CUM_AT_EXTREME]
+        state[_EXTREME] = x
+        state[_CUM_AT_EXTREME] = state[_CUM]
+
+
+@numba.njit(cache=True)
+def path_step(
+    state: FloatArray, t: float, x: float, v: float, still_speed: float, deadband: float,
+    out: FloatArray,
+) -> None:  # fmt: skip
+    first = state[_FIRST] == 1.0
+    dx = 0.0 if first else x - state[_PREV_X]
+    state[_CUM] += abs(dx)
+    _direction_step(state, x, v, deadband)
+    # hysteresis: a noisy speed near the threshold must not make many short standstills
+    still = abs(v) < (RESUME_FACTOR * still_speed if state[_STILL] == 1.0 else still_speed)
+    if first:
+        state[_T0] = t
+    if still and (first or state[_STILL] == 0.0):
+        state[_STILL_SINCE] = t
+    if not still and not first and state[_STILL] == 1.0:
+        state[_DWELL] = t - state[_STILL_SINCE]
+        state[_CUM_AT_RESUME] = state[_CUM]
+    state[_STILL] = 1.0 if still else 0.0
+    state[_PREV_X] = x
+    state[_FIRST] = 0.0
+    out[_OUT_DIR] = state[_DIR]
+    out[_OUT_S_REV] = state[_CUM] - state[_CUM_AT_REVERSAL]
+    out[_OUT_DWELL] = state[_DWELL]
+    out[_OUT_S_START] = state[_CUM] - state[_CUM_AT_RESUME]
+    out[_OUT_MOVING] = 0.0 if still else 1.0
+    out[_OUT_ELAPSED] = t - state[_T0]
+
+
+@numba.njit(cache=True)
+def _path_run(
+    state: FloatArray, t: FloatArray, x: FloatArray, v: FloatArray, still_speed: float,
+    deadband: float,
+) -> FloatArray:  # fmt: skip
+    out = np.empty((t.size, N_OUT))
+    for i in range(t.size):
+        path_step(state, t[i], x[i], v[i], still_speed, deadband, out[i])
+    return out
+
+
+def fresh_path_state() -> FloatArray:
+    state = np.zeros(_N_STATE)
+    state[_FIRST] = 1.0
+    return state
+
+
+@dataclass(frozen=True)
+class Context:
+    """What an effect sees along a trajectory (arrays of one length, or 1-element arrays
+    for one streaming sample)."""
+
+    time_s: FloatArray
+    position_m: FloatArray
+    velocity_m_s: FloatArray
+    acceleration_m_s2: FloatArray
+    gms_force_N: FloatArray
+    direction: FloatArray
+    distance_since_reversal_m: FloatArray
+    dwell_s: FloatArray
+    distance_since_start_m: FloatArray
+    moving: FloatArray
+    elapsed_s: FloatArray
+    sample_time_s: float
+
+    @classmethod
+    def along(
+        cls,
+        time_s: ArrayLike,
+        position_m: ArrayLike,
+        velocity_m_s: ArrayLike,
+        acceleration_m_s2: ArrayLike,
+        gms_force_N: ArrayLike,
+        standstill_speed_m_s: float = DEFAULT_STANDSTILL_SPEED_M_S,
+        reversal_deadband_m: float = 0.0,
+    ) -> Context:
+        """The context of a whole trajectory (a reversal needs a retreat of more than
+        ``reversal_deadband_m``: set it above the position noise)."""
+        t = np.ascontiguousarray(time_s, dtype=np.float64)
+        x = np.ascontiguousarray(position_m, dtype=np.float64)
+        v = np.ascontiguousarray(velocity_m_s, dtype=np.float64)
+        path = _path_run(fresh_path_state(), t, x, v, standstill_speed_m_s, reversal_deadband_m)
+        dt = float((t[-1] - t[0]) / (t.size - 1)) if t.size > 1 else 0.0
+        return cls.with_path(
+            t, x, v, np.asarray(acceleration_m_s2, float), np.asarray(gms_force_N, float), path, dt
+        )
+
+    @classmethod
+    def with_path(
+        cls, t: FloatArray, x: FloatArray, v: FloatArray, a: FloatArray, f: FloatArray,
+        path: FloatArray, sample_time_s: float,
+    ) -> Context:  # fmt: skip
+        return cls(
+            t, x, v, a, f,
+            direction=path[:, _OUT_DIR],
+            distance_since_reversal_m=path[:, _OUT_S_REV],
+            dwell_s=path[:, _OUT_DWELL],
+            distance_since_start_m=path[:, _OUT_S_START],
+            moving=path[:, _OUT_MOVING],
+            elapsed_s=path[:, _OUT_ELAPSED],
+            sample_time_s=sample_time_s,
+        )  # fmt: skip

@@ -1,0 +1,79 @@
+"""``position_ripple``: dF = A sin(2 pi x / lambda + phi) (magnet cogging, a ball pitch)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from gms_comp.runtime.effects.base import Effect, Shape, stroke, top_speed
+from gms_comp.runtime.effects.path import Context, FloatArray
+
+# Wavelengths scanned for peaks of the residual's projection; the residual is summed
+# into position bins of at most an eighth of the shortest wavelength (at most SCAN_BINS).
+SCAN_POINTS = 600
+SCAN_BINS = 20000
+
+
+@dataclass(frozen=True)
+class PositionRipple(Effect):
+    """A ripple of ``amplitude_N`` and ``wavelength_m`` along the position."""
+
+    name: ClassVar[str] = "position_ripple"
+    SHAPE: ClassVar[tuple[str, ...]] = ("wavelength_m",)
+    amplitude_N: float
+    wavelength_m: float
+    phase_rad: float
+
+    @classmethod
+    def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:
+        """sin and cos of 2 pi x / lambda."""
+        arg = 2 * np.pi * ctx.position_m / shape["wavelength_m"]
+        return np.column_stack([np.sin(arg), np.cos(arg)])
+
+    @classmethod
+    def from_coefficients(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Effect:
+        """a sin + b cos = A sin(arg + phi)."""
+        a, b = (float(c) for c in coefficients)
+        return cls(math.hypot(a, b), shape["wavelength_m"], math.atan2(b, a))
+
+    def coefficients(self) -> FloatArray:
+        """``[A cos phi, A sin phi]``."""
+        return self.amplitude_N * np.array([math.cos(self.phase_rad), math.sin(self.phase_rad)])
+
+    @classmethod
+    def _range(cls, ctx: Context) -> tuple[float, float]:
+        # at least four samples per period at top speed, at most a third of the stroke
+        return max(4 * top_speed(ctx) * ctx.sample_time_s, 1e-6), stroke(ctx) / 3
+
+    @classmethod
+    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
+        """Wavelengths where the residual's projection on sin/cos(2 pi x / lambda) peaks,
+        refined on a fine grid around the three strongest peaks."""
+        lo, hi = cls._range(ctx)
+        moving = ctx.moving > 0
+        if hi <= lo or not np.any(moving):
+            return []
+        x = ctx.position_m[moving]
+        r = residual_N[moving] - np.mean(residual_N[moving])
+        width = max(lo / 8, float(np.ptp(x)) / SCAN_BINS, 1e-12)
+        index = np.floor((x - float(np.min(x))) / width).astype(np.int64)
+        sums = np.bincount(index, weights=r)
+        centres = float(np.min(x)) + (np.arange(sums.size) + 0.5) * width
+        grid = np.geomspace(lo, hi, SCAN_POINTS)
+        power = np.abs(np.exp(-2j * np.pi * np.outer(1.0 / grid, centres)) @ sums)
+        peaks = [i for i in np.argsort(power)[::-1] if 0 < i < grid.size - 1][:3]
+        ratio = grid[1] / grid[0]
+        return [
+            {"wavelength_m": float(v)}
+            for i in peaks
+            for v in np.geomspace(grid[i] / ratio, grid[i] * ratio, 7)
+        ]
+
+    @classmethod
+    def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
+        """The scanned range of wavelengths."""
+        return {"wavelength_m": cls._range(ctx)}

@@ -1,0 +1,50 @@
+"""``reversal_transient``: dF = A d exp(-s/l), d the direction of motion, s the distance
+since the last reversal, A > 0 (an overshoot after every reversal)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from gms_comp.runtime.effects.base import Effect, Shape, stroke
+from gms_comp.runtime.effects.path import Context, FloatArray
+
+
+@dataclass(frozen=True)
+class ReversalTransient(Effect):
+    """Overshoot ``amplitude_N`` decaying over ``length_m`` of travel after a reversal."""
+
+    name: ClassVar[str] = "reversal_transient"
+    SHAPE: ClassVar[tuple[str, ...]] = ("length_m",)
+    COEFFICIENT_LOWER: ClassVar[float] = 0.0
+    amplitude_N: float
+    length_m: float
+
+    @classmethod
+    def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:
+        """The direction times the decay with the distance since the reversal."""
+        decay = np.exp(-ctx.distance_since_reversal_m / shape["length_m"])
+        return (ctx.direction * decay)[:, None]
+
+    @classmethod
+    def from_coefficients(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Effect:
+        """The effect with amplitude ``coefficients[0]``."""
+        return cls(float(coefficients[0]), shape["length_m"])
+
+    def coefficients(self) -> FloatArray:
+        """``[A]``."""
+        return np.array([self.amplitude_N])
+
+    @classmethod
+    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
+        """Lengths from a tenth of the presliding length to a fifth of the stroke."""
+        hi = max(stroke(ctx) / 5, presliding_m)
+        return [{"length_m": float(s)} for s in np.geomspace(presliding_m / 10, hi, 14)]
+
+    @classmethod
+    def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
+        """Lengths within 1/20 of the presliding length and the stroke."""
+        return {"length_m": (presliding_m / 20, max(stroke(ctx), presliding_m))}

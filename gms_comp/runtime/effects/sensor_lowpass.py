@@ -1,0 +1,55 @@
+"""``sensor_lowpass``: the measured force is a Butterworth low-pass of order n, cut-off
+f_c, of the true force (a filter of the measurement chain, not of the contact)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from scipy import signal
+
+from gms_comp.runtime.effects.base import FilterEffect, Shape
+from gms_comp.runtime.effects.path import Context, FloatArray
+
+
+@dataclass(frozen=True)
+class SensorLowpass(FilterEffect):
+    """The sensor reports a causal Butterworth low-pass of the true force."""
+
+    name: ClassVar[str] = "sensor_lowpass"
+    measurement_only: ClassVar[bool] = True
+    cutoff_Hz: float
+    order: int
+
+    @classmethod
+    def from_shape(cls, shape: Mapping[str, float]) -> FilterEffect:
+        """The filter with ``cutoff_Hz`` and ``order``."""
+        return cls(float(shape["cutoff_Hz"]), int(shape["order"]))
+
+    def filter(self, sample_time_s: float) -> tuple[FloatArray, FloatArray]:
+        """The Butterworth coefficients (cut-off at most 0.99 Nyquist)."""
+        nyquist_Hz = 0.5 / sample_time_s
+        b, a = signal.butter(self.order, min(self.cutoff_Hz / nyquist_Hz, 0.99))
+        return np.asarray(b), np.asarray(a)
+
+    def parameters(self) -> dict[str, float]:
+        """``cutoff_Hz`` and the integer ``order``."""
+        return {"cutoff_Hz": float(self.cutoff_Hz), "order": int(self.order)}
+
+    @classmethod
+    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
+        """Cut-offs from 1/100 to 1/2 of Nyquist, orders 1 and 2."""
+        nyquist = 0.5 / ctx.sample_time_s
+        return [
+            {"cutoff_Hz": float(fc), "order": float(order)}
+            for fc in np.geomspace(nyquist / 100, nyquist / 2, 10)
+            for order in (1, 2)
+        ]
+
+    @classmethod
+    def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
+        """Cut-offs within 1/300 and 0.99 of Nyquist (the order is not searched)."""
+        nyquist = 0.5 / ctx.sample_time_s
+        return {"cutoff_Hz": (nyquist / 300, 0.99 * nyquist)}

@@ -1,0 +1,51 @@
+"""``stribeck``: element limits scaled by 1 + (r - 1) exp(-(|v|/v_s)^2), r > 1: friction
+falls from break-away towards sliding (a rise is the baseline's slip level C_v)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from gms_comp.runtime.effects.base import Effect, Shape, top_speed
+from gms_comp.runtime.effects.path import Context, FloatArray
+
+
+@dataclass(frozen=True)
+class Stribeck(Effect):
+    """Stribeck ratio ``ratio`` (break-away over sliding level) and speed ``v_s_m_per_s``."""
+
+    name: ClassVar[str] = "stribeck"
+    SHAPE: ClassVar[tuple[str, ...]] = ("v_s_m_per_s",)
+    COEFFICIENT_LOWER: ClassVar[float] = 0.0  # ratio - 1 >= 0
+    ratio: float
+    v_s_m_per_s: float
+
+    @classmethod
+    def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:
+        """The GMS force times the Stribeck bump."""
+        u = ctx.velocity_m_s / shape["v_s_m_per_s"]
+        return (ctx.gms_force_N * np.exp(-(u * u)))[:, None]
+
+    @classmethod
+    def from_coefficients(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Effect:
+        """The effect with ``ratio - 1 = coefficients[0]``."""
+        return cls(1.0 + float(coefficients[0]), shape["v_s_m_per_s"])
+
+    def coefficients(self) -> FloatArray:
+        """``[ratio - 1]``."""
+        return np.array([self.ratio - 1.0])
+
+    @classmethod
+    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
+        """Stribeck speeds from 1/200 to 1/2 of the top speed."""
+        vmax = top_speed(ctx)
+        return [{"v_s_m_per_s": float(v)} for v in np.geomspace(vmax / 200, vmax / 2, 10)]
+
+    @classmethod
+    def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
+        """v_s within 1/1000 of the top speed and the top speed."""
+        vmax = top_speed(ctx)
+        return {"v_s_m_per_s": (vmax / 1000, vmax)}

@@ -1,0 +1,358 @@
+"""The GMS table file: bristle elements plus where they came from and how good they are.
+
+A table is JSON (read with :func:`json.loads`, never pickle), SI units, keys
+carrying their units::
+
+    {"format": "gms-comp-table", "format_version": 1, "gms_comp_version": "0.1.0",
+     "units": {...}, "elements": N, "stiffness_N_per_m": [...], "limit_N": [...],
+     "velocity_level": {"slip_level": 1.2, "transition_velocity_m_s": 1e-4,
+                        "transition_exponent": 2.0},
+     "attraction_rate_per_s": null,            # null: infinite (Maxwell-slip)
+     "viscous_Ns_per_m": 0.0,
+     "source": {"config": "...", "sha256": "..."},
+     "fidelity": {"rms_rel": ..., "max_rel": ...},
+     "load_family": null | {"normal_load_N": [...], "stiffness_N_per_m": [[...]],
+                            "limit_N": [[...]]},
+     "extensions": [{"effect": "viscous", "parameters": {"name": 1.0}}]}
+
+``limit_N`` are the limits W_i at level s = 1 (at rest). A load family holds
+the elements at several ball loads (one row each) for interpolation.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gms_comp import __version__
+from gms_comp.atomic import write_text
+from gms_comp.errors import TableError
+from gms_comp.gms import FloatArray, GmsParams
+from gms_comp.validation import (
+    MAX_FAMILY_LOADS,
+    MAX_TABLE_BYTES,
+    MAX_TABLE_ELEMENTS,
+    check_count,
+    parse_json,
+    read_text,
+)
+
+FORMAT = "gms-comp-table"
+FORMAT_VERSION = 1
+UNITS = {
+    "position": "m",
+    "velocity": "m/s",
+    "force": "N",
+    "stiffness": "N/m",
+    "viscous": "N s/m",
+    "attraction_rate": "1/s",
+    "normal_load": "N",
+}
+_VERSION = re.compile(r"^(\d+)\.(\d+)\.(\d+)")
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+# Upper bounds of a table's numbers: far above any linear guide, low enough that the
+# observer's arithmetic (k_i z_i, sums over elements) stays finite.
+#: Element stiffness k_i of a table, N/m.
+MAX_STIFFNESS_N_PER_M = 1e12
+#: Element limit W_i and load-family loads of a table, N.
+MAX_FORCE_N = 1e6
+#: Viscous coefficient of a table, N s/m.
+MAX_VISCOUS_NS_PER_M = 1e7
+#: Slip level s of a table.
+MAX_SLIP_LEVEL = 10.0
+#: Transition velocity of a table's velocity level, m/s.
+MAX_TRANSITION_VELOCITY_M_S = 1.0
+#: Transition exponent of a table's velocity level.
+MAX_TRANSITION_EXPONENT = 10.0
+#: Attraction rate of a table, 1/s (null means infinite: Maxwell-slip).
+MAX_ATTRACTION_RATE_PER_S = 1e9
+#: Model extensions (catalogue effects) of a table.
+MAX_EXTENSIONS = 64
+
+
+@dataclass(frozen=True)
+class Fidelity:
+    """How closely the GMS follows the ball model, relative to the sliding force."""
+
+    rms_rel: float
+    max_rel: float
+
+
+@dataclass(frozen=True)
+class Extension:
+    """A model extension (an effect from the measured-data catalogue) and its numbers."""
+
+    effect: str
+    parameters: Mapping[str, float]
+
+
+@dataclass(frozen=True, eq=False)
+class LoadFamily:
+    """Element sets over a grid of ball loads; rows follow ``normal_load_N`` (increasing)."""
+
+    normal_load_N: FloatArray
+    stiffness_N_per_m: FloatArray
+    limit_N: FloatArray
+
+    def elements_at(self, normal_load_N: float) -> tuple[FloatArray, FloatArray]:
+        """k_i and W_i linearly interpolated in load (clamped to the grid's ends)."""
+
+        def interp(rows: FloatArray) -> FloatArray:
+            return np.array([np.interp(normal_load_N, self.normal_load_N, c) for c in rows.T])
+
+        return interp(self.stiffness_N_per_m), interp(self.limit_N)
+
+
+@dataclass(frozen=True, eq=False)
+class GmsTable:
+    """A GMS model with its provenance, fidelity and optional extras."""
+
+    params: GmsParams
+    source_config: str
+    source_sha256: str
+    fidelity: Fidelity
+    version: str = __version__
+    load_family: LoadFamily | None = None
+    extensions: tuple[Extension, ...] = field(default_factory=tuple)
+
+    @property
+    def n_elements(self) -> int:
+        return self.params.n_elements
+
+
+# --- writing ----------------------------------------------------------------------------
+
+
+def table_to_dict(table: GmsTable) -> dict[str, Any]:
+    """The JSON document of a table."""
+    p = table.params
+    family = table.load_family
+    return {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "gms_comp_version": table.version,
+        "units": dict(UNITS),
+        "elements": p.n_elements,
+        "stiffness_N_per_m": p.stiffness_N_per_m.tolist(),
+        "limit_N": p.limit_N.tolist(),
+        "velocity_level": {
+            "slip_level": p.slip_level,
+            "transition_velocity_m_s": p.transition_velocity_m_s,
+            "transition_exponent": p.transition_exponent,
+        },
+        "attraction_rate_per_s": (
+            None if math.isinf(p.attraction_rate_per_s) else p.attraction_rate_per_s
+        ),
+        "viscous_Ns_per_m": p.viscous_Ns_per_m,
+        "source": {"config": table.source_config, "sha256": table.source_sha256},
+        "fidelity": {"rms_rel": table.fidelity.rms_rel, "max_rel": table.fidelity.max_rel},
+        "load_family": None
+        if family is None
+        else {
+            "normal_load_N": family.normal_load_N.tolist(),
+            "stiffness_N_per_m": family.stiffness_N_per_m.tolist(),
+            "limit_N": family.limit_N.tolist(),
+        },
+        "extensions": [
+            {"effect": e.effect, "parameters": dict(e.parameters)} for e in table.extensions
+        ],
+    }
+
+
+def write_table(path: str | Path, table: GmsTable) -> None:
+    """Write ``table`` as JSON; the file is replaced atomically."""
+    text = json.dumps(table_to_dict(table), indent=1, allow_nan=False)
+    write_text(path, text + "\n")
+
+
+# --- reading ----------------------------------------------------------------------------
+
+
+def read_table(path: str | Path) -> GmsTable:
+    """Read and validate a table file; any defect raises :class:`TableError`."""
+    p = Path(path)
+    text = read_text(p, max_bytes=MAX_TABLE_BYTES, what="table file", error=TableError)
+    doc = parse_json(text, str(p), error=TableError)
+    return table_from_dict(doc, str(p))
+
+
+def table_from_dict(doc: Any, where: str) -> GmsTable:
+    """Validate a parsed table document; ``where`` names the file in messages."""
+    r = _Reader(where)
+    if not isinstance(doc, dict):
+        raise r.error("", "must be a JSON object")
+    if doc.get("format") != FORMAT:
+        raise r.error("format", f"must be {FORMAT!r}, got {doc.get('format')!r}")
+    fv = r.get(doc, "format_version")
+    if fv != FORMAT_VERSION:
+        raise r.error("format_version", f"unknown version {fv!r} (this reader knows 1)")
+    version = r.version(doc, "gms_comp_version")
+    units = r.get(doc, "units")
+    if units != UNITS:
+        raise r.error("units", f"must be {UNITS}, got {units!r}")
+    n = r.get(doc, "elements")
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise r.error("elements", f"must be a positive integer, got {n!r}")
+    check_count(where, "elements", n, MAX_TABLE_ELEMENTS, "elements", error=TableError)
+    k = r.vector(
+        r.get(doc, "stiffness_N_per_m"), "stiffness_N_per_m", n, True, MAX_STIFFNESS_N_PER_M
+    )
+    w = r.vector(r.get(doc, "limit_N"), "limit_N", n, False, MAX_FORCE_N)
+    level = r.get(doc, "velocity_level")
+    rate = r.get(doc, "attraction_rate_per_s")
+    params = GmsParams(
+        k,
+        w,
+        slip_level=r.number(level, "velocity_level.slip_level", True, MAX_SLIP_LEVEL),
+        transition_velocity_m_s=r.number(
+            level, "velocity_level.transition_velocity_m_s", True, MAX_TRANSITION_VELOCITY_M_S
+        ),
+        transition_exponent=r.number(
+            level, "velocity_level.transition_exponent", True, MAX_TRANSITION_EXPONENT
+        ),
+        attraction_rate_per_s=math.inf
+        if rate is None
+        else r.number(doc, "attraction_rate_per_s", True, MAX_ATTRACTION_RATE_PER_S),
+        viscous_Ns_per_m=r.number(doc, "viscous_Ns_per_m", False, MAX_VISCOUS_NS_PER_M),
+    )
+    source = r.get(doc, "source")
+    fidelity = r.get(doc, "fidelity")
+    return GmsTable(
+        params=params,
+        source_config=r.string(source, "source.config"),
+        source_sha256=r.sha256(source, "source.sha256"),
+        fidelity=Fidelity(
+            rms_rel=r.number(fidelity, "fidelity.rms_rel", False, math.inf),
+            max_rel=r.number(fidelity, "fidelity.max_rel", False, math.inf),
+        ),
+        version=version,
+        load_family=r.load_family(doc, n),
+        extensions=r.extensions(doc),
+    )
+
+
+class _Reader:
+    """Field accessors that raise :class:`TableError` naming the file and the field."""
+
+    def __init__(self, where: str) -> None:
+        self.where = where
+
+    def error(self, key: str, reason: str) -> TableError:
+        return TableError(self.where, key, reason)
+
+    def get(self, obj: Any, key: str) -> Any:
+        """``obj[last part of key]``; a missing key is reported with its full name."""
+        name = key.rsplit(".", 1)[-1]
+        if not isinstance(obj, dict):
+            parent = key.rsplit(".", 1)[0]
+            raise self.error(parent, "must be a JSON object")
+        if name not in obj:
+            raise self.error(key, "missing")
+        return obj[name]
+
+    def number(self, obj: Any, key: str, positive: bool, hi: float) -> float:
+        return self.check_number(self.get(obj, key), key, positive, hi)
+
+    def check_number(self, value: Any, key: str, positive: bool, hi: float) -> float:
+        """A finite number, > 0 when ``positive`` else >= 0, and <= ``hi``."""
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.error(key, f"must be a number, got {value!r}")
+        bad = value <= 0 if positive else value < 0
+        if not math.isfinite(value) or bad:
+            raise self.error(key, f"must be {'> 0' if positive else '>= 0'}, got {value!r}")
+        if value > hi:
+            raise self.error(key, f"must be <= {hi:g}, got {value!r}")
+        return float(value)
+
+    def vector(self, value: Any, key: str, n: int | None, positive: bool, hi: float) -> FloatArray:
+        """A list of ``n`` numbers (any non-zero length when ``n`` is None)."""
+        if not isinstance(value, list) or not value or (n is not None and len(value) != n):
+            raise self.error(key, f"must be a list of {n or 'some'} numbers")
+        return np.array(
+            [self.check_number(v, f"{key}[{i}]", positive, hi) for i, v in enumerate(value)]
+        )
+
+    def string(self, obj: Any, key: str) -> str:
+        value = self.get(obj, key)
+        if not isinstance(value, str):
+            raise self.error(key, f"must be a string, got {value!r}")
+        return value
+
+    def sha256(self, obj: Any, key: str) -> str:
+        value = self.string(obj, key)
+        if not re.fullmatch(r"[0-9a-f]{64}", value):
+            raise self.error(key, "must be 64 lowercase hex digits")
+        return value
+
+    def version(self, obj: Any, key: str) -> str:
+        value = self.string(obj, key)
+        found = _VERSION.match(value)
+        ours = _VERSION.match(__version__)
+        assert ours is not None
+        if found is None or found.group(1) != ours.group(1):
+            raise self.error(key, f"unknown version {value!r} (this is gms-comp {__version__})")
+        return value
+
+    def load_family(self, doc: Any, n: int) -> LoadFamily | None:
+        family = self.get(doc, "load_family")
+        if family is None:
+            return None
+        key = "load_family.normal_load_N"
+        loads = self.get(family, key)
+        if isinstance(loads, list):
+            check_count(self.where, key, len(loads), MAX_FAMILY_LOADS, "loads", error=TableError)
+        loads = self.vector(loads, key, None, True, MAX_FORCE_N)
+        if np.any(np.diff(loads) <= 0):
+            raise self.error(key, "must be increasing")
+        rows = []
+        for name, positive, hi in (
+            ("stiffness_N_per_m", True, MAX_STIFFNESS_N_PER_M),
+            ("limit_N", False, MAX_FORCE_N),
+        ):
+            key = f"load_family.{name}"
+            value = self.get(family, key)
+            if not isinstance(value, list) or len(value) != loads.size:
+                raise self.error(key, f"must hold {loads.size} rows")
+            rows.append(
+                np.array(
+                    [self.vector(v, f"{key}[{i}]", n, positive, hi) for i, v in enumerate(value)]
+                )
+            )
+        return LoadFamily(loads, rows[0], rows[1])
+
+    def extensions(self, doc: Any) -> tuple[Extension, ...]:
+        items = doc.get("extensions", [])
+        if not isinstance(items, list):
+            raise self.error("extensions", "must be a list")
+        check_count(
+            self.where, "extensions", len(items), MAX_EXTENSIONS, "extensions", error=TableError
+        )
+        out = []
+        for i, item in enumerate(items):
+            key = f"extensions.{i}"
+            effect = self.string(item, f"{key}.effect")
+            if not _NAME.match(effect):
+                raise self.error(f"{key}.effect", f"must be a name, got {effect!r}")
+            params = self.get(item, f"{key}.parameters")
+            if not isinstance(params, dict):
+                raise self.error(f"{key}.parameters", "must be a JSON object")
+            values = {}
+            for name, value in params.items():
+                pkey = f"{key}.parameters.{name}"
+                if not _NAME.match(name):
+                    raise self.error(pkey, "parameter names must be names")
+                if isinstance(value, bool) or not isinstance(value, (int, float)):
+                    raise self.error(pkey, f"must be a number, got {value!r}")
+                if not math.isfinite(value) or abs(value) > 1e12:
+                    raise self.error(pkey, f"must be finite and within +-1e12, got {value!r}")
+                values[name] = float(value)
+            out.append(Extension(effect, values))
+        return tuple(out)
