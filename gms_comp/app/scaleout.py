@@ -36,7 +36,7 @@ from tqdm import tqdm
 
 from gms_comp.config import parse_section
 from gms_comp.errors import ConfigError, GmsCompError, InputError
-from gms_comp.validation import MAX_WORKERS, scheduler_address
+from gms_comp.validation import MAX_WORKERS, input_file, int_in_range, scheduler_address
 
 #: Printed (one line, stderr) when a remote scheduler is reached over plain tcp.
 PLAIN_TCP_WARNING = (
@@ -280,3 +280,34 @@ def run_jobs(
                 result = JobResult(index, None, f"{type(err).__name__}: {err}")
             bar.update()
             yield result
+
+
+def add_cluster_arguments(parser: Any, default_hint: str = "a local cluster") -> None:
+    """Add ``--scheduler``, ``--tls-ca-file/--tls-cert/--tls-key``, ``--workers`` and
+    ``--serial`` to a subcommand's parser (the same options for every Dask command)."""
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        type=scheduler_address,
+        help=f"Dask scheduler, tls://host:8786 or tcp://host:8786 (default: {default_hint})",
+    )
+    for option, what in (
+        ("--tls-ca-file", "CA certificate (PEM) that signed the scheduler's certificate"),
+        ("--tls-cert", "this client's certificate (PEM)"),
+        ("--tls-key", "this client's private key (PEM)"),
+    ):
+        parser.add_argument(option, type=input_file, metavar="PEM", help=what)
+    parser.add_argument(
+        "--workers",
+        type=int_in_range(1, MAX_WORKERS),
+        default=None,
+        help="local cluster size (default: one per core)",
+    )
+    parser.add_argument("--serial", action="store_true", help="run in this process, no Dask")
+
+
+def cli_tls(args: Any) -> TlsFiles | None:
+    """The TLS files given on the command line, None when none were."""
+    if args.tls_ca_file or args.tls_cert or args.tls_key:
+        return tls_files(args.tls_ca_file, args.tls_cert, args.tls_key)
+    return None

@@ -19,7 +19,7 @@ import numpy as np
 from tqdm import tqdm
 
 from gms_comp.app.fleet import FleetJob, diagnose_fleet, format_table, report_names
-from gms_comp.app.scaleout import dask_client
+from gms_comp.app.scaleout import add_cluster_arguments, cli_tls, dask_client
 from gms_comp.config import config_hash, load_ball_config, read_toml
 from gms_comp.errors import GmsCompError
 from gms_comp.gms import GmsParams
@@ -56,13 +56,7 @@ def register(subparsers: Any) -> None:
         metavar="TRACE",
         help="canonical CSV, EMPS .mat, or any .csv/.mat with --map",
     )
-    p.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        help="Dask scheduler for many traces, e.g. tcp://host:8786 (default: local cluster)",
-    )
-    p.add_argument("--workers", type=int, help="local cluster size (default: one per core)")
-    p.add_argument("--serial", action="store_true", help="many traces in this process, no Dask")
+    add_cluster_arguments(p)
     p.add_argument(
         "--config",
         help=(
@@ -252,7 +246,7 @@ def _run_fleet(args: argparse.Namespace, mapping: Mapping[str, str] | None) -> i
     if args.serial:
         fleet = diagnose_fleet(jobs)
     else:
-        with dask_client(args.scheduler, args.workers) as client:
+        with dask_client(args.scheduler, args.workers, cli_tls(args)) as client:
             fleet = diagnose_fleet(jobs, client=client)
     written = [p for row in fleet["traces"] for p in row.get("report", [])]
     if args.json:

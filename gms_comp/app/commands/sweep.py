@@ -8,9 +8,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from gms_comp.app.scaleout import dask_client, tls_files
+from gms_comp.app.scaleout import add_cluster_arguments, cli_tls, dask_client, tls_files
 from gms_comp.app.sweep import load_sweep, run_sweep
-from gms_comp.validation import MAX_WORKERS, input_file, int_in_range, output_dir, scheduler_address
+from gms_comp.validation import output_dir
 
 
 def register(subparsers: Any) -> None:
@@ -25,26 +25,7 @@ def register(subparsers: Any) -> None:
         ),
     )
     parser.add_argument("sweep_file", type=Path, metavar="SWEEP.toml", help="sweep definition")
-    parser.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        type=scheduler_address,
-        help="Dask scheduler address, tls://host:8786 or tcp://host:8786 "
-        "(default: [scaleout] scheduler of the sweep file, else a local cluster)",
-    )
-    for option, what in (
-        ("--tls-ca-file", "CA certificate (PEM) that signed the scheduler's certificate"),
-        ("--tls-cert", "this client's certificate (PEM)"),
-        ("--tls-key", "this client's private key (PEM)"),
-    ):
-        parser.add_argument(option, type=input_file, metavar="PEM", help=what)
-    parser.add_argument(
-        "--workers",
-        type=int_in_range(1, MAX_WORKERS),
-        default=None,
-        help="local cluster size (default: one per core)",
-    )
-    parser.add_argument("--serial", action="store_true", help="run in this process, no Dask")
+    add_cluster_arguments(parser, "[scaleout] scheduler of the sweep file, else a local cluster")
     parser.add_argument(
         "-o",
         "--output",
@@ -62,9 +43,8 @@ def run(args: argparse.Namespace) -> int:
         manifest = run_sweep(spec, args.output)
     else:
         cfg = spec.scaleout
-        if args.tls_ca_file or args.tls_cert or args.tls_key:
-            tls = tls_files(args.tls_ca_file, args.tls_cert, args.tls_key)
-        else:
+        tls = cli_tls(args)
+        if tls is None:
             tls = tls_files(
                 cfg.tls_ca_file, cfg.tls_cert, cfg.tls_key, source=f"{spec.path}: scaleout"
             )
