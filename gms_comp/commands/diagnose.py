@@ -20,7 +20,8 @@ from tqdm import tqdm
 
 from ..config import config_hash, load_ball_config, read_toml
 from ..diagnosis import emps
-from ..diagnosis.report import parameter_text, phase_label
+from ..diagnosis.phases import phase_label
+from ..diagnosis.result import parameter_text
 from ..diagnosis.run import Diagnosis, diagnose, load_diagnosis_config
 from ..effects import effect_to_dict
 from ..errors import GmsCompError
