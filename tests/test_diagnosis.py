@@ -217,3 +217,12 @@ def test_self_energizing_damper_is_unknown_not_a_catalogue_name() -> None:
     assert result.effect == "unknown"
     assert result.structure.description()
     assert result.extended_rms_N > 3 * result.noise_rms_N
+
+
+def test_validation_trace_is_the_held_out_part() -> None:
+    # a second record of the same machine: every sample of TRACE trains, TRACE2 scores
+    train, held = generate("offset", 5, scale=0.25).trace, generate("offset", 5).trace
+    result = diagnose(train, validation=held)
+    assert result.effect == "offset"
+    assert "validation_force_N" in result.series
+    assert result.extended_rms_N < 0.5 * result.baseline_rms_N

@@ -24,7 +24,8 @@ from gms_comp.config import config_hash, load_ball_config, read_toml
 from gms_comp.errors import GmsCompError
 from gms_comp.gms import GmsParams
 from gms_comp.measured.diagnosis import emps
-from gms_comp.measured.diagnosis.report import parameter_text, phase_label
+from gms_comp.measured.diagnosis.phases import phase_label
+from gms_comp.measured.diagnosis.result import parameter_text
 from gms_comp.measured.diagnosis.run import Diagnosis, diagnose, load_diagnosis_config
 from gms_comp.measured.traces import Trace, load_trace, parse_mapping
 from gms_comp.runtime.effects import effect_to_dict

@@ -54,7 +54,7 @@ SLIP_LEVEL_RANGE = (1.0, 3.0)
 MIN_TRANSITION_M_S = 1e-7
 TRANSITION_FRACTIONS = (1 / 5000, 1 / 10)
 TRANSITION_POINTS = 4
-REFINE_ROUNDS = 8
+REFINE_ROUNDS = 12
 REFINE_STEPS = ((0.1, 2.0), (0.05, 1.4), (0.02, 1.15))  # C_v +-, v_t x/ (shrinking)
 
 
@@ -275,7 +275,7 @@ def refine_slip_level(
     vt_range = _transition_range(vmax)
     best = (cost(baseline.parts), basis.slip_level, basis.transition_velocity_m_s)
     rounds = 0
-    for d_cv, f_vt in REFINE_STEPS[1:]:  # from near the blind baseline's optimum
+    for d_cv, f_vt in REFINE_STEPS:
         while rounds < REFINE_ROUNDS:
             rounds += 1
             start = best

@@ -144,6 +144,8 @@ class Scorer:
 
 
 def _acting(values: FloatArray) -> BoolArray:
+    if values.shape[0] == 0:  # a part without held-out rows (the training trace)
+        return np.zeros(0, dtype=bool)
     size = np.max(np.abs(values), axis=0)
     return np.any(np.abs(values) > SUPPORT_FRACTION * np.where(size > 0, size, np.inf), axis=1)
 

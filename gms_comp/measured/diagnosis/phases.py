@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from gms_comp.measured.diagnosis.design import rms
@@ -62,3 +64,12 @@ def residual_by_phase(
                 "fraction": float(np.count_nonzero(mask) / n),
             }
     return out
+
+
+def phase_label(key: str) -> str:
+    """A phase key as words (``sliding_pos_0.0123_m_s`` -> sliding forward, 12.3 mm/s)."""
+    m = re.fullmatch(r"sliding_(pos|neg)_(.+)_m_s", key)
+    if m:
+        way = "forward" if m.group(1) == "pos" else "backward"
+        return f"sliding {way}, {1e3 * float(m.group(2)):.3g} mm/s"
+    return key.replace("_", " ")

@@ -4,7 +4,6 @@ by phase; measured and model force) and an index.html with the plots and the tab
 from __future__ import annotations
 
 import html
-import re
 from pathlib import Path
 
 import matplotlib
@@ -14,30 +13,10 @@ import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
 
 from gms_comp.atomic import atomic_path, write_text
-from gms_comp.measured.diagnosis.result import Diagnosis
+from gms_comp.measured.diagnosis.phases import phase_label
+from gms_comp.measured.diagnosis.result import Diagnosis, parameter_text
 
-# Units of parameter names by their suffix (longest first), for people.
-_UNITS = (
-    ("_Ns_per_m", "N s/m"), ("_m_per_s", "m/s"), ("_m_s", "m/s"), ("_Hz", "Hz"), ("_kg", "kg"),
-    ("_rad", "rad"), ("_N", "N"), ("_s", "s"), ("_m", "m"),
-)  # fmt: skip
-
-
-def parameter_text(name: str, value: float) -> str:
-    """``name = value unit`` with the unit read from the name's suffix."""
-    for suffix, unit in _UNITS:
-        if name.endswith(suffix):
-            return f"{name[: -len(suffix)]} = {value:.4g} {unit}"
-    return f"{name} = {value:.4g}"
-
-
-def phase_label(key: str) -> str:
-    """A phase key as words (``sliding_pos_0.0123_m_s`` -> sliding forward, 12.3 mm/s)."""
-    m = re.fullmatch(r"sliding_(pos|neg)_(.+)_m_s", key)
-    if m:
-        way = "forward" if m.group(1) == "pos" else "backward"
-        return f"sliding {way}, {1e3 * float(m.group(2)):.3g} mm/s"
-    return key.replace("_", " ")
+__all__ = ["parameter_text", "phase_label", "write_report"]
 
 
 def _save(fig: Figure, path: Path) -> Path:

@@ -79,3 +79,18 @@ def verdict(ranked: tuple[Ranked, ...], structure: Structure) -> str:
     if structure.structured:
         return "unknown"
     return ranked[0].effect.name if ranked else "none"
+
+
+# Units of parameter names by their suffix (longest first), for people.
+_UNITS = (
+    ("_Ns_per_m", "N s/m"), ("_m_per_s", "m/s"), ("_m_s", "m/s"), ("_Hz", "Hz"), ("_kg", "kg"),
+    ("_rad", "rad"), ("_N", "N"), ("_s", "s"), ("_m", "m"),
+)  # fmt: skip
+
+
+def parameter_text(name: str, value: float) -> str:
+    """``name = value unit`` with the unit read from the name's suffix."""
+    for suffix, unit in _UNITS:
+        if name.endswith(suffix):
+            return f"{name[: -len(suffix)]} = {value:.4g} {unit}"
+    return f"{name} = {value:.4g}"

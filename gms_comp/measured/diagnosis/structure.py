@@ -19,7 +19,7 @@ import numpy as np
 
 from gms_comp.measured.diagnosis.baseline import FittedPart
 from gms_comp.measured.diagnosis.design import BoolArray, FloatArray, rms
-from gms_comp.measured.diagnosis.phases import phase_masks
+from gms_comp.measured.diagnosis.phases import phase_label, phase_masks
 
 BINS = 16
 POSITION_BINS = 12
@@ -165,5 +165,5 @@ def _phase_finding(
     name = "no phase"
     if key >= 0:
         names = list(phase_masks(parts[key // 100].ctx, presliding_m))
-        name = names[key % 100].replace("_", " ")
+        name = phase_label(names[key % 100])
     return Finding("phase", size, f"the residual is largest in {name} (mean {mean:+.3g} N)")
