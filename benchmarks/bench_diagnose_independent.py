@@ -4,7 +4,8 @@ Every case over N seeds (101, 102, ...): generate, write the canonical CSV, run
 ``python -m gms_comp diagnose CSV --json`` and time the call (wall clock). Prints a markdown
 table (hit rate per case, false positives on ``none``, unknown rate, pair-order rate,
 parameter errors, median and worst time), or with ``--json`` the per-trace rows as JSON;
-``-o FILE`` writes the JSON rows.
+``-o FILE`` writes the JSON rows (after every trace); ``--rows FILE...`` prints the table of
+saved rows without running anything.
 
     python benchmarks/bench_diagnose_independent.py --seeds 1 --jobs 2 -o indep.json
 """
@@ -161,7 +162,14 @@ def main(argv: list[str] | None = None) -> int:
         "--json", action="store_true", help="print the rows as JSON instead of the table"
     )
     parser.add_argument("-o", "--output", type=output_file, help="write the rows as JSON here")
+    parser.add_argument(
+        "--rows", nargs="+", type=Path, help="no run: print the table of rows saved with -o"
+    )
     args = parser.parse_args(argv)
+    if args.rows:
+        saved = [row for path in args.rows for row in json.loads(path.read_text())]
+        print(table(saved))
+        return 0
     work = [(case, FIRST_SEED + i) for i in range(args.seeds) for case in args.cases]
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as folder, ThreadPoolExecutor(args.jobs) as pool:

@@ -6,7 +6,7 @@ its own trajectories (``indepmotion``), its own nominal ranges.
 
 Truth
 -----
-A plain Maxwell-slip model of N = 3-12 elements, break-away displacements spread
+(``indepfriction``) A plain Maxwell-slip model of N = 3-12 elements, break-away displacements spread
 log-uniformly over 0.2-30 um, sliding level 3-40 N. The element limits rise with speed from
 the stick level to C_v (1.0-1.3) times it, smoothly, over a transition velocity v_t of
 0.1-0.8 mm/s: limit factor 1 + (C_v - 1) q / (1 + q), q = (|v| / v_t)^2. This is the seed's
@@ -27,8 +27,15 @@ speed, dwell, reversal distance or acceleration, so no other entry can either:
 - ``unknown_bumps``: the limits rise by a Gaussian bump at 2-4 discrete positions (dirt,
   a damaged raceway spot): localised in position, not periodic.
 - ``unknown_time_modulation``: the limits are modulated periodically in time at
-  0.05-0.3 Hz (a periodic load or temperature cycle), unrelated to position or motion;
-  ``drift`` is monotonic in time and cannot follow it.
+  0.05-0.3 Hz, at least four periods per trace (a periodic load or temperature cycle),
+  unrelated to position or motion; ``drift`` is monotonic in time and cannot follow it.
+
+Pairs (``pair_<larger>_<smaller>``): two catalogue effects at once; the smaller one's force
+contribution (RMS over the trace) is a third of the larger one's, so the ranking is defined.
+
+Trajectory (``indepmotion``): shuffled cycles of the seed's step-and-stop (0.05-0.2 mm steps,
+dwells 0.05-3 s), S-curve point-to-point moves (slow, medium and fast within 1-100 mm/s),
+sines (0.05-5 mm, 1-100 mm/s peak) and micrometre reversals (1-20 um), from rest to rest.
 """
 
 from __future__ import annotations
