@@ -29,7 +29,8 @@ SLOW: dict[str, frozenset[str]] = {
             "test_unlike_gms_falls_back_to_free_nnls",  # 24 s
         }
     ),
-    "test_sweep.py": frozenset({"test_local_cluster_gives_the_serial_result"}),  # 23 s
+    "test_sweep.py": frozenset({"test_local_cluster_gives_the_serial_result"}),  # 23-32 s
+    "test_fleet.py": frozenset({"test_local_cluster_gives_the_serial_rows"}),  # 15-75 s
     "test_can_processes.py": frozenset({"test_stream_to_an_emulator_in_another_process"}),  # 18 s
 }
 
