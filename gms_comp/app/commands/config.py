@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from firmware_bridge.settings import CanConfig
+from gms_comp.app.scaleout import ScaleoutConfig
 from gms_comp.atomic import write_text
 from gms_comp.config import (
     BearingConfig,
@@ -53,6 +54,7 @@ SECTIONS: dict[str, type[Any]] = {
     "compensator": CompensatorConfig,
     "can": CanConfig,
     "diagnosis": DiagnosisConfig,
+    "scaleout": ScaleoutConfig,
 }
 
 # Units from a key's name suffix (longest suffixes first); keys without one are plain numbers.
