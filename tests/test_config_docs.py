@@ -66,7 +66,10 @@ def test_unit_from_the_name_suffix(name: str, unit: str) -> None:
 def test_rows_state_unit_default_and_range() -> None:
     text = DOC.read_text(encoding="utf-8")
     # The seed's Table 1 values and the loader's ranges, written out by hand.
-    assert "| `ball_radius_m` | m | *required* (Table 1: `0.003175`) | number, in [0.0001, 0.05] |" in text
+    assert (
+        "| `ball_radius_m` | m | *required* (Table 1: `0.003175`) | number, in [0.0001, 0.05] |"
+        in text
+    )
     assert (
         "| `poisson_ratio_ball` | - | *required* (Table 1: `0.3`) | number, in [0, 0.5) |" in text
     )
