@@ -20,6 +20,7 @@ import importlib
 import os
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from gms_comp import __version__
 from gms_comp.errors import GmsCompError
@@ -42,9 +43,17 @@ SUBCOMMANDS: tuple[str, ...] = (
 INTERRUPTED = 130  # the shell's code for a process ended by SIGINT
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose refusals are one line (no usage block), exit code 2."""
+
+    def error(self, message: str) -> NoReturn:
+        """Print ``PROG: error: MESSAGE (see PROG --help)`` on stderr and exit 2."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``gms-comp`` parser with every subcommand of :data:`SUBCOMMANDS` registered."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="gms-comp",
         description="Friction compensation for linear-motor axes with ball guides.",
     )
