@@ -5,13 +5,11 @@ Each case is a real command line (``python -m gms_comp ...`` in a child process 
 a 3 GB address-space cap, see tests/cli_runner.py) on a file or value built to be bad,
 grouped in the classes of the reliability audit (issue 13). An outcome is one of
 
-- ``refused``: exit 2, exactly one error line on stderr (argparse's usage block, which
-  precedes its error line, is not counted), no traceback;
+- ``refused``: exit 2, exactly one error line on stderr, no traceback;
 - ``traceback``, ``accepted`` (exit 0/1 on bad input: a silent acceptance), ``hang``
   (over the time bound), ``multi-line`` or ``crash`` (killed, e.g. by the memory cap).
 
-Cases on commands other helpers own are kept, marked xfail (not strict) with the owner,
-until their work lands. The slow part runs every case through a fresh interpreter
+The slow part runs every case through a fresh interpreter
 (``subprocess``, no fork) and adds random mutations of the good files.
 """
 
@@ -49,7 +47,6 @@ class Case:
     cls: str
     argv: tuple[str, ...]
     names: tuple[str, ...] = ()  # substrings the error line must hold (file, key, reason)
-    owner: str = ""  # another helper's command that may still fail the case
     files: dict[str, Callable[[Path], object]] = field(default_factory=dict, compare=False)
 
 
@@ -273,7 +270,6 @@ CASES: list[Case] = [
         "resources",
         ("profile", "p.csv", "--sample-rate-hz", "1e9"),
         ("sample-rate",),
-        owner="diag (profile)",
     ),
     Case(
         "table_elements_100000",
@@ -349,7 +345,6 @@ CASES: list[Case] = [
         "resources",
         ("stream", "--duration", "1e7"),
         ("duration",),
-        owner="can (stream)",
     ),
     Case(
         "csv_100000_columns",
@@ -472,7 +467,6 @@ CASES: list[Case] = [
         "trace",
         ("diagnose", "c.csv"),
         ("c.csv", "force"),
-        owner="diag (degenerate traces)",
         files={"c.csv": _text(_trace_with(2, lambda v, i: 1.5))},
     ),
     # command-line values
@@ -515,7 +509,6 @@ CASES: list[Case] = [
         "cli",
         ("table", "-o", "no/such/t.json", "--elements", "2"),
         ("no/such",),
-        owner="release (table -o checked at parsing)",
     ),
     Case(
         "map_is_not_code",
@@ -528,7 +521,6 @@ CASES: list[Case] = [
         "cli",
         ("profile", "no/such/p.csv"),
         ("no/such",),
-        owner="diag (profile output checked at parsing)",
     ),
     # malformed files
     Case(
@@ -579,8 +571,7 @@ CASES: list[Case] = [
 
 
 def _param(case: Case) -> Any:
-    marks = [pytest.mark.xfail(strict=False, reason=f"owner: {case.owner}")] if case.owner else []
-    return pytest.param(case, id=case.id, marks=marks)
+    return pytest.param(case, id=case.id)
 
 
 # --- running ------------------------------------------------------------------------------
@@ -641,18 +632,8 @@ def run_subprocess(folder: Path, argv: tuple[str, ...]) -> dict[str, Any]:
 
 
 def error_lines(stderr: str) -> list[str]:
-    """stderr without argparse's usage block (``usage: ...`` and its indented lines)."""
-    lines, in_usage = [], False
-    for line in stderr.splitlines():
-        if line.startswith("usage: "):
-            in_usage = True
-            continue
-        if in_usage and line.startswith(" "):
-            continue
-        in_usage = False
-        if line.strip():
-            lines.append(line)
-    return lines
+    """The non-blank lines of stderr (a refusal is exactly one, usage block included)."""
+    return [line for line in stderr.splitlines() if line.strip()]
 
 
 def outcome(result: dict[str, Any]) -> str:
