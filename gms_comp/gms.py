@@ -104,6 +104,7 @@ class GmsParams:
 
     @property
     def n_elements(self) -> int:
+        """Number of Maxwell-slip elements."""
         return int(self.stiffness_N_per_m.size)
 
     @property
@@ -173,6 +174,7 @@ class GmsState:
         return cls(np.zeros(n_elements), np.zeros(n_elements))
 
     def copy(self) -> GmsState:
+        """An independent copy of this state."""
         return GmsState(self.element_force_N.copy(), self.slip_direction.copy(), self.position_m)
 
 

@@ -62,6 +62,7 @@ class JobResult(Generic[R]):
 
     @property
     def ok(self) -> bool:
+        """True when the job raised nothing."""
         return not self.error
 
 
@@ -114,6 +115,7 @@ class ScaleoutConfig:
     tls_key: str = ""
 
     def problems(self) -> list[tuple[str, str]]:
+        """``(key, reason)`` pairs for values that are wrong together."""
         if self.scheduler:
             try:
                 scheduler_address(self.scheduler)

@@ -245,6 +245,7 @@ def random_path(
 
 
 def with_reference(model: ForceModel, paths: Iterable[Path_]) -> list[Reference]:
+    """Each path paired with the reference model's force along it."""
     return [((x, v), model(x, v)) for x, v in paths]
 
 

@@ -125,6 +125,7 @@ class GmsTable:
 
     @property
     def n_elements(self) -> int:
+        """Number of GMS elements in the table."""
         return self.params.n_elements
 
 

@@ -126,6 +126,7 @@ def measure(quick: bool = False) -> dict[str, Any]:
 
 
 def register(subparsers: Any) -> None:
+    """Add the ``bench`` subcommand to ``subparsers``."""
     parser = subparsers.add_parser(
         "bench",
         help="measure the speed of the GMS model",

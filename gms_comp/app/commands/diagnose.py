@@ -42,6 +42,7 @@ COLUMNS_HELP = (
 
 
 def register(subparsers: Any) -> None:
+    """Add the ``diagnose`` subcommand to ``subparsers``."""
     p = subparsers.add_parser(
         "diagnose",
         help="diagnose measured traces against the model",

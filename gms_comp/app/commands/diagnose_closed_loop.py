@@ -35,6 +35,7 @@ class EffectDisturbance:
         self.current_A = -np.asarray(force_N) / force_constant_N_per_A
 
     def transfer(self, cycle: int, current_A: float) -> float:
+        """The link's current for ``cycle`` plus the diagnosed effects' current."""
         extra = float(self.current_A[min(cycle, self.current_A.size - 1)])
         return self.link.transfer(cycle, current_A) + extra
 

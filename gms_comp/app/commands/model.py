@@ -14,6 +14,7 @@ from gms_comp.validation import output_dir
 
 
 def register(subparsers: Any) -> None:
+    """Add the ``model`` subcommand to ``subparsers``."""
     parser = subparsers.add_parser(
         "model",
         help="evaluate the ball/raceway friction model of a config",
@@ -88,6 +89,7 @@ def _print_text(data: dict[str, Any]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Evaluate the ball model of the config; summary, JSON or plots."""
     cfg = load_ball_config(args.config)
     data = summary(cfg)
     if args.json:

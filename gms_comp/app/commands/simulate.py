@@ -50,6 +50,7 @@ from sim.trajectories import reversals
 
 
 def register(subparsers: Any) -> None:
+    """Add the ``simulate`` subcommand to ``subparsers``."""
     parser = subparsers.add_parser(
         "simulate",
         help="run the simulated linear-motor axis under each friction compensation",

@@ -14,6 +14,7 @@ from gms_comp.validation import output_dir
 
 
 def register(subparsers: Any) -> None:
+    """Add the ``sweep`` subcommand to ``subparsers``."""
     parser = subparsers.add_parser(
         "sweep",
         help="generate a family of tables over a parameter grid (Dask)",
@@ -38,6 +39,7 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the sweep (Dask or serial) and report its manifest."""
     spec = load_sweep(args.sweep_file)
     if args.serial:
         manifest = run_sweep(spec, args.output)

@@ -40,6 +40,7 @@ def _loads(text: str) -> tuple[float, ...]:
 
 
 def register(subparsers: Any) -> None:
+    """Add the ``table`` subcommand to ``subparsers``."""
     parser = subparsers.add_parser(
         "table",
         help="reduce the ball model to a GMS table",
@@ -73,6 +74,7 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Reduce the config's ball model to a GMS table and write it."""
     start = time.perf_counter()
     cfg = load_ball_config(args.config)
     table_cfg = load_table_config(cfg.path)

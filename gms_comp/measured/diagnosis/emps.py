@@ -44,6 +44,7 @@ class IdimResult:
     condition_number: float
 
     def parameters(self) -> dict[str, float]:
+        """The identified parameters by name."""
         return {n: float(v) for n, v in zip(self.names, self.theta, strict=True)}
 
 

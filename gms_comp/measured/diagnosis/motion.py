@@ -34,6 +34,7 @@ class Kinematics:
         return len(self.time_s)
 
     def slice(self, start: int, stop: int | None = None) -> Kinematics:
+        """The kinematics of samples ``start`` to ``stop``."""
         s = slice(start, stop)
         return Kinematics(
             self.time_s[s], self.position_m[s], self.velocity_m_s[s], self.acceleration_m_s2[s]

@@ -56,6 +56,7 @@ def path_step(
     state: FloatArray, t: float, x: float, v: float, still_speed: float, deadband: float,
     out: FloatArray,
 ) -> None:  # fmt: skip
+    """Advance the path ``state`` by one sample and write its quantities to ``out``."""
     first = state[_FIRST] == 1.0
     dx = 0.0 if first else x - state[_PREV_X]
     state[_CUM] += abs(dx)
@@ -92,6 +93,7 @@ def _path_run(
 
 
 def fresh_path_state() -> FloatArray:
+    """The path state before the first sample."""
     state = np.zeros(_N_STATE)
     state[_FIRST] = 1.0
     return state
@@ -142,6 +144,7 @@ class Context:
         cls, t: FloatArray, x: FloatArray, v: FloatArray, a: FloatArray, f: FloatArray,
         path: FloatArray, sample_time_s: float,
     ) -> Context:  # fmt: skip
+        """A context from the samples and their precomputed path quantities."""
         return cls(
             t, x, v, a, f,
             direction=path[:, _OUT_DIR],
