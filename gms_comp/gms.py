@@ -37,9 +37,9 @@ from typing import Any
 
 import numba
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
-FloatArray = NDArray[np.float64]
+from gms_comp.arrays import FloatArray
 
 # Layout of the scalar parameter vector handed to the kernels.
 _SLIP_LEVEL, _TRANSITION_V, _TRANSITION_EXP, _ATTRACTION, _VISCOUS = range(5)

@@ -15,8 +15,8 @@ from typing import Any, Literal
 
 import numba
 import numpy as np
-from numpy.typing import NDArray
 
+from gms_comp.arrays import FloatArray
 from gms_comp.runtime.observer import (
     ForceModel,
     FrictionObserver,
@@ -29,7 +29,6 @@ from sim.plant import LinearMotorAxis, axis_cycle
 from sim.strategies import CompiledModel, CoulombViscous, compiled_form
 from sim.trajectories import Reference
 
-FloatArray = NDArray[np.float64]
 Signals = tuple[Any, ...]
 # Placeholder for a run without a compensator (never stepped).
 _NO_MODEL = CoulombViscous(0.0, 0.0, 1.0).compiled()

@@ -29,12 +29,10 @@ from typing import Literal
 import control
 import numba
 import numpy as np
-from numpy.typing import NDArray
 
+from gms_comp.arrays import FloatArray
 from gms_comp.config import in_range, positive
 from sim.plant import PlantConfig
-
-FloatArray = NDArray[np.float64]
 
 # Layout of the compiled controller's gain vector ...
 _KP, _PA, _PB, _PC, _PD, _FA, _FB, _FC, _FD, _ACC, _PERIOD, _LIMIT = range(12)

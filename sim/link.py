@@ -13,11 +13,9 @@ from typing import Protocol
 
 import numba
 import numpy as np
-from numpy.typing import NDArray
 
+from gms_comp.arrays import FloatArray
 from gms_comp.errors import ScenarioError
-
-FloatArray = NDArray[np.float64]
 
 
 class FeedforwardLink(Protocol):

@@ -28,11 +28,10 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from gms_comp.arrays import FloatArray
 from gms_comp.config import in_range, non_negative, positive
 from gms_comp.errors import ScenarioError
 from sim.kernels import Pack, truth_force, truth_pack, zero_truth
-
-FloatArray = NDArray[np.float64]
 
 
 class Friction(Protocol):

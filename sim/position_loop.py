@@ -29,14 +29,12 @@ from typing import Any
 
 import numba
 import numpy as np
-from numpy.typing import NDArray
 
 from gms_comp import gms as gms_kernel
+from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams, GmsStream
 from sim.controller import ControllerConfig
 from sim.kernels import Pack, truth_force, zero_truth
-
-FloatArray = NDArray[np.float64]
 
 MAX_FIR_TAPS = 8
 

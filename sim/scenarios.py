@@ -22,6 +22,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from gms_comp.arrays import FloatArray
 from gms_comp.config import (
     BallConfig,
     default_config_path,
@@ -42,7 +43,7 @@ from sim.link import DirectLink, FeedforwardLink
 from sim.plant import Friction, LinearMotorAxis, PlantConfig, ScaledFriction, compiled_truth
 from sim.position_loop import PositionLoop, RigidAxisModel, simulate_loop
 from sim.strategies import REGISTRY, STRATEGIES, Calibration, StrategyInputs, calibrate
-from sim.trajectories import FloatArray, Reference, circle, reversals, sine, step_stop, stops
+from sim.trajectories import Reference, circle, reversals, sine, step_stop, stops
 
 MAX_DURATION_S = 600.0
 

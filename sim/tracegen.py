@@ -13,11 +13,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams, simulate
-
-FloatArray = NDArray[np.float64]
 
 TRUTH_GMS = GmsParams(
     stiffness_N_per_m=np.array([4.0, 3.0, 2.5, 2.0, 1.5])

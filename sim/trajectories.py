@@ -18,9 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from gms_comp.arrays import FloatArray
 from gms_comp.physics.profiles import seed_fig7_profile
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

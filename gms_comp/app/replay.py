@@ -28,6 +28,7 @@ import scipy.io
 from numpy.typing import NDArray
 from scipy import signal
 
+from gms_comp.arrays import FloatArray
 from gms_comp.config import parse_section, read_toml
 from gms_comp.errors import GmsCompError
 from gms_comp.gms import GmsParams
@@ -40,7 +41,6 @@ from sim.link import FeedforwardLink
 from sim.position_loop import LoopRun, PositionLoop, RigidAxisModel, simulate_loop
 from sim.strategies import CoulombViscous
 
-FloatArray = NDArray[np.float64]
 TimeBase = Literal["simulink", "data"]
 
 # The benchmark's reference model (EMPS_Description.pdf §3.4, hard-coded in its

@@ -21,9 +21,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
+from gms_comp.arrays import FloatArray
 from gms_comp.config import BallConfig, ModelConfig
 from gms_comp.errors import ConfigError
 from gms_comp.physics.contact import (
@@ -32,8 +32,6 @@ from gms_comp.physics.contact import (
     effective_shear_modulus_Pa,
     hertz_contact,
 )
-
-FloatArray = NDArray[np.float64]
 
 #: The seed's Eq. (2) modulus E' (N/mm^2) is used as k_q in N/mm^3: per millimetre.
 SEED_STIFFNESS_LENGTH_m = 1e-3

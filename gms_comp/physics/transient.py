@@ -32,10 +32,9 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from gms_comp.arrays import FloatArray
 from gms_comp.config import BallConfig
 from gms_comp.physics.ball_model import area_nodes, steady_state, stripe_model
-
-FloatArray = NDArray[np.float64]
 
 # Columns of the per-stripe parameter array.
 _WEIGHT, _HALF, _XI, _UMAX, _SPACING = range(5)

@@ -28,14 +28,12 @@ from typing import Literal, Protocol, runtime_checkable
 
 import numba
 import numpy as np
-from numpy.typing import NDArray
 
+from gms_comp.arrays import FloatArray
 from gms_comp.config import in_range, non_negative, positive
 from gms_comp.gms import GmsStream
 from gms_comp.runtime.effects import Effect, ExtensionStream, effect_from_dict
 from gms_comp.tables.table import GmsTable
-
-FloatArray = NDArray[np.float64]
 
 
 @runtime_checkable

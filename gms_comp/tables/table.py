@@ -32,9 +32,10 @@ from typing import Any
 import numpy as np
 
 from gms_comp import __version__
+from gms_comp.arrays import FloatArray
 from gms_comp.atomic import write_text
 from gms_comp.errors import TableError
-from gms_comp.gms import FloatArray, GmsParams
+from gms_comp.gms import GmsParams
 from gms_comp.validation import (
     MAX_FAMILY_LOADS,
     MAX_TABLE_BYTES,

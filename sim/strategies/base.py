@@ -24,15 +24,13 @@ from typing import Any, Protocol
 import numba
 import numpy as np
 from numba import types
-from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
+from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams, GmsStream
 from gms_comp.runtime.observer import ForceModel
 from gms_comp.tables.table import GmsTable
 from sim.plant import Friction
-
-FloatArray = NDArray[np.float64]
 
 NO_GMS = GmsStream(GmsParams(np.ones(1), np.zeros(1))).kernel
 NO_ARRAY = np.zeros(1)

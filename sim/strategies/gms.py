@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 from gms_comp import gms as gms_kernel
+from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsStream
 from gms_comp.runtime.observer import ForceModel
 from gms_comp.tables.table import GmsTable
-from sim.strategies.base import NO_ARRAY, CompiledModel, FloatArray, StrategyInputs, compiled_step
+from sim.strategies.base import NO_ARRAY, CompiledModel, StrategyInputs, compiled_step
 
 
 @compiled_step

@@ -9,9 +9,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gms_comp.arrays import FloatArray
 from gms_comp.runtime.observer import ForceModel
 from gms_comp.tables.table import GmsTable
-from sim.strategies.base import CompiledModel, FloatArray, StrategyInputs, compiled_step
+from sim.strategies.base import CompiledModel, StrategyInputs, compiled_step
 
 
 @compiled_step

@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from gms_comp.gms import FloatArray, GmsParams, GmsStream, simulate
+from gms_comp.arrays import FloatArray
+from gms_comp.gms import GmsParams, GmsStream, simulate
 
 SAMPLE_RATE_Hz = 10_000.0
 

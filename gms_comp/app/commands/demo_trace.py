@@ -20,14 +20,13 @@ from typing import Any
 
 import numpy as np
 
+from gms_comp.arrays import FloatArray
 from gms_comp.atomic import write_text
 from gms_comp.gms import GmsParams
 from gms_comp.measured.traces import Trace
 from gms_comp.runtime import effects as fx
 from gms_comp.validation import output_file
 from sim import tracegen
-
-FloatArray = fx.FloatArray
 
 # The main parameter of each spec catalogue effect, as the diagnosis must recover it.
 MAIN_PARAMETER = {

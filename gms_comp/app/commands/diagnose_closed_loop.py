@@ -16,14 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
+from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams, GmsStream, simulate
 from gms_comp.measured.diagnosis.run import Diagnosis
 from gms_comp.runtime import effects as fx
 from gms_comp.tables.table import Extension, Fidelity, GmsTable
 from sim.link import DirectLink, FeedforwardLink
 from sim.scenarios import Physics, Scenario, build_reference, load_scenario, run_strategies, score
-
-FloatArray = fx.FloatArray
 
 
 class EffectDisturbance:

@@ -28,8 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
+from gms_comp.arrays import BoolArray, FloatArray
 from gms_comp.gms import GmsParams, simulate
-from gms_comp.measured.diagnosis.design import BoolArray, FloatArray, solve
+from gms_comp.measured.diagnosis.design import solve
 from gms_comp.measured.diagnosis.motion import Kinematics
 
 # Bounds of the calibrated factors: presliding scale (on every W_i / k_i), slip level

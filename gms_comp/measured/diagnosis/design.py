@@ -15,11 +15,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy import linalg, optimize
 
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
+from gms_comp.arrays import BoolArray, FloatArray
 
 # Ridge (relative to the unit diagonal of the scaled Gram matrix) that keeps an empty or
 # duplicated column from making the solve singular; its coefficient then stays near 0.

@@ -17,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from gms_comp.measured.diagnosis.motion import FloatArray, Kinematics, decimate_matlab, kinematics
+from gms_comp.arrays import FloatArray
+from gms_comp.measured.diagnosis.motion import Kinematics, decimate_matlab, kinematics
 from gms_comp.measured.traces import Trace
 
 FILTER_CUTOFF_HZ = 100.0  # 5 x the 20 Hz position-loop bandwidth

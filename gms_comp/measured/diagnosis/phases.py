@@ -6,8 +6,8 @@ import re
 
 import numpy as np
 
+from gms_comp.arrays import BoolArray, FloatArray
 from gms_comp.measured.diagnosis.design import rms
-from gms_comp.measured.diagnosis.motion import BoolArray, FloatArray
 from gms_comp.runtime import effects as fx
 
 # |a| above this fraction of the trace's peak acceleration counts as an acceleration phase.

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gms_comp.arrays import BoolArray, FloatArray
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
-from gms_comp.measured.diagnosis.design import BoolArray, FloatArray
 from gms_comp.measured.diagnosis.motion import Kinematics, kinematics
 from gms_comp.measured.traces import ForceKind, Trace
 from gms_comp.validation import InputError

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams, simulate
 from gms_comp.measured.diagnosis.baseline import (
     Baseline,
@@ -27,7 +28,7 @@ from gms_comp.measured.diagnosis.baseline import (
 )
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, design, effect_of, widths
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
-from gms_comp.measured.diagnosis.design import FloatArray, GramDesign, rms, train_rms
+from gms_comp.measured.diagnosis.design import GramDesign, rms, train_rms
 from gms_comp.measured.diagnosis.selection import Selection, admissible, local_search
 from gms_comp.runtime import effects as fx
 

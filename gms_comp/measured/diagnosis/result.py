@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams
-from gms_comp.measured.diagnosis.design import FloatArray
 from gms_comp.measured.diagnosis.refit import Ranked
 from gms_comp.measured.diagnosis.structure import Structure
 from gms_comp.runtime import effects as fx

@@ -19,10 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gms_comp.arrays import FloatArray
 from gms_comp.measured.diagnosis.baseline import Baseline
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, Trial, options
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
-from gms_comp.measured.diagnosis.design import FloatArray, rms
+from gms_comp.measured.diagnosis.design import rms
 from gms_comp.runtime import effects as fx
 
 # Relative steps of the local search on shape parameters after the grid, and the most

@@ -17,8 +17,9 @@ from typing import Any
 
 import numpy as np
 
+from gms_comp.arrays import BoolArray, FloatArray
 from gms_comp.measured.diagnosis.baseline import FittedPart
-from gms_comp.measured.diagnosis.design import BoolArray, FloatArray, rms
+from gms_comp.measured.diagnosis.design import rms
 from gms_comp.measured.diagnosis.phases import phase_label, phase_masks
 
 BINS = 16

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from dataclasses import fields
 from typing import Any
 
+from gms_comp.arrays import FloatArray
 from gms_comp.errors import TableError
 from gms_comp.runtime.effects.base import Effect, FilterEffect
 from gms_comp.runtime.effects.direction_asymmetry import DirectionAsymmetry
@@ -23,7 +24,7 @@ from gms_comp.runtime.effects.drive_lag import DriveLag
 from gms_comp.runtime.effects.dwell_time import DwellTime
 from gms_comp.runtime.effects.inertia import Inertia
 from gms_comp.runtime.effects.offset import Offset
-from gms_comp.runtime.effects.path import DEFAULT_STANDSTILL_SPEED_M_S, Context, FloatArray
+from gms_comp.runtime.effects.path import DEFAULT_STANDSTILL_SPEED_M_S, Context
 from gms_comp.runtime.effects.position_ripple import PositionRipple
 from gms_comp.runtime.effects.reversal_transient import ReversalTransient
 from gms_comp.runtime.effects.sensor_lowpass import SensorLowpass

@@ -28,7 +28,8 @@ from typing import ClassVar
 import numpy as np
 from scipy import signal
 
-from gms_comp.runtime.effects.path import Context, FloatArray
+from gms_comp.arrays import FloatArray
+from gms_comp.runtime.effects.path import Context
 
 Shape = dict[str, float]
 

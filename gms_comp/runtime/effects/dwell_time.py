@@ -9,8 +9,9 @@ from typing import ClassVar
 
 import numpy as np
 
+from gms_comp.arrays import FloatArray
 from gms_comp.runtime.effects.base import Effect, Shape, duration
-from gms_comp.runtime.effects.path import Context, FloatArray
+from gms_comp.runtime.effects.path import Context
 
 # The time constants the diagnosis considers (s): far below a servo cycle or above a
 # trace's length a dwell gain cannot be told from a constant one.

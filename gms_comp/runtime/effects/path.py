@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
-FloatArray = NDArray[np.float64]
+from gms_comp.arrays import FloatArray
 
 # Below this speed an axis counts as standing still unless a caller says otherwise.
 DEFAULT_STANDSTILL_SPEED_M_S = 1e-4

@@ -9,8 +9,9 @@ from typing import ClassVar
 
 import numpy as np
 
+from gms_comp.arrays import FloatArray
 from gms_comp.runtime.effects.base import Effect, Shape, stroke, top_speed
-from gms_comp.runtime.effects.path import Context, FloatArray
+from gms_comp.runtime.effects.path import Context
 
 # Wavelengths scanned for peaks of the residual's projection; the residual is summed
 # into position bins of at most an eighth of the shortest wavelength (at most SCAN_BINS).

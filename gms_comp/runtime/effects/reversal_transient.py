@@ -9,8 +9,9 @@ from typing import ClassVar
 
 import numpy as np
 
+from gms_comp.arrays import FloatArray
 from gms_comp.runtime.effects.base import Effect, Shape, stroke
-from gms_comp.runtime.effects.path import Context, FloatArray
+from gms_comp.runtime.effects.path import Context
 
 
 @dataclass(frozen=True)

@@ -10,8 +10,9 @@ from typing import ClassVar
 import numpy as np
 from scipy import signal
 
+from gms_comp.arrays import FloatArray
 from gms_comp.runtime.effects.base import FilterEffect, Shape
-from gms_comp.runtime.effects.path import Context, FloatArray
+from gms_comp.runtime.effects.path import Context
 
 
 @dataclass(frozen=True)
