@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -68,18 +67,6 @@ def timed_diagnose(csv_path: Path, timeout_s: float = 900.0) -> Outcome:
     command = [sys.executable, "-m", "gms_comp", "diagnose", str(csv_path), "--json"]
     start = time.perf_counter()
     done = subprocess.run(command, capture_output=True, text=True, timeout=timeout_s)
-    if done.returncode != 0 and "--json" in done.stderr:
-        # FALLBACK while `--json` is still "a file argument" (being changed to a flag that
-        # prints on stdout): write to a temporary file and read it. Remove once it landed.
-        with tempfile.TemporaryDirectory() as folder:
-            out = Path(folder) / "result.json"
-            start = time.perf_counter()
-            done = subprocess.run(
-                [*command, str(out)], capture_output=True, text=True, timeout=timeout_s
-            )
-            seconds = time.perf_counter() - start
-            _check(done, csv_path)
-            return Outcome(json.loads(out.read_text()), seconds)
     seconds = time.perf_counter() - start
     _check(done, csv_path)
     return Outcome(json.loads(done.stdout), seconds)
