@@ -10,6 +10,7 @@ from __future__ import annotations
 import bisect
 import math
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -77,9 +78,16 @@ class Streamer:
     foreign_frames: int = 0  # frames with our exclusive ids sent by another node
     sent_log: list[tuple[float, float, bytes]] = field(default_factory=list)
     send_clock: Callable[[], float] | None = None  # stamps the log at the send, if given
+    # What this node sent lately: some transports (udp_multicast) hand a node its own
+    # frames back, which are echoes, not another node's.
+    own_recent: deque[tuple[int, bytes]] = field(default_factory=lambda: deque(maxlen=256))
 
     def __post_init__(self) -> None:
         self.shaper = Shaper(self.tx.limit_raw, self.cfg.ramp_cycles)
+
+    def _send(self, msg: can.Message) -> None:
+        self.bus.send(msg)
+        self.own_recent.append((msg.arbitration_id, bytes(msg.data)))
 
     def cycle(self, cycle: int, current_A: float | None, now_s: float) -> int:
         """Send cycle ``cycle``'s frames; ``None`` ramps towards zero. Returns the raw command."""
@@ -92,12 +100,12 @@ class Streamer:
         # however long the thread waited (GIL, scheduler) around the call
         before = now_s if self.send_clock is None else self.send_clock()
         try:
-            self.bus.send(feedforward)
+            self._send(feedforward)
             self.frames_sent += 1
             after = now_s if self.send_clock is None else self.send_clock()
             self.sent_log.append((before, after, bytes(feedforward.data)))
             for msg in extra:
-                self.bus.send(msg)
+                self._send(msg)
         except can.CanError:
             self.send_errors += 1  # the bus is off; the drive's timeout takes over
         self.drain_replies()
@@ -106,6 +114,10 @@ class Streamer:
     def drain_replies(self) -> None:
         """Hand every frame waiting on the bus to the profile; count another node's."""
         while (msg := self.bus.recv(timeout=0.0)) is not None:
+            key = (msg.arbitration_id, bytes(msg.data))
+            if key in self.own_recent:
+                self.own_recent.remove(key)  # our own frame handed back by the transport
+                continue
             if msg.arbitration_id in self.tx.exclusive_ids:
                 self.foreign_frames += 1
             self.tx.on_reply(msg)
