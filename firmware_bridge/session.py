@@ -28,7 +28,13 @@ from firmware_bridge.bus import open_bus
 from firmware_bridge.busload import check_bus_load
 from firmware_bridge.emulator import DriveEmulator
 from firmware_bridge.faults import Fault, FaultyBus
-from firmware_bridge.profiles.base import CompensatorTx, Device, SyncCounter, get_profile
+from firmware_bridge.profiles.base import (
+    CompensatorTx,
+    Device,
+    SyncCounter,
+    get_profile,
+    sync_slot,
+)
 from firmware_bridge.settings import CanConfig
 from firmware_bridge.streamer import (
     Streamer,
@@ -321,7 +327,10 @@ def _follower_loop(
 
     Cycle ``k`` is the SYNC in the ``k``-th period since the first one (the
     frame's alive counter, dated by the drive on its own cycles, so an NC that
-    skips a SYNC does not put the counter behind time); a loop that missed
+    skips a SYNC does not put the counter behind time), by the SYNC counter
+    when the NC sends one (a SYNC sent late keeps its slot; by time alone one
+    late by half a cycle would take the next slot and put every later counter a
+    cycle ahead of time, younger than it is to the drive); a loop that missed
     SYNCs answers only the latest (counted late), so no two RPDOs share a window.
     Lateness is the reaction time to the SYNC, on the bus timestamps' clock.
     """
@@ -331,6 +340,7 @@ def _follower_loop(
     seen = sync.seen
     cycle = -1
     first_sync_s = 0.0
+    counter: int | None = None
     wait_s = FIRST_SYNC_WAIT_S
     sync_lost = False
     while cycle + 1 < n_cycles or rig.streamer.shaper.value_raw != 0:
@@ -341,7 +351,9 @@ def _follower_loop(
         if cycle < 0:
             first_sync_s, slot = sync.last_s, 0
         else:
-            slot = max(cycle + 1, round((sync.last_s - first_sync_s) / period))
+            by_time = round((sync.last_s - first_sync_s) / period)
+            slot = sync_slot(cycle, counter, sync.last_counter, by_time)
+        counter = sync.last_counter
         seen = sync.seen
         stats.skipped += slot - cycle - 1 if cycle >= 0 else 0
         cycle = slot

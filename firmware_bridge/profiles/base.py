@@ -19,18 +19,57 @@ from firmware_bridge.settings import CanConfig
 from firmware_bridge.supervisor import RejectCounts
 from gms_comp.errors import BusError
 
+SYNC_COUNTER_OVERFLOW = 240
+"""The SYNC counter runs 1..240 (CiA 301 object 0x1019, its largest overflow value)."""
+
 
 class SyncCounter:
-    """SYNCs seen on the bus, whoever produced them, with the latest bus timestamp."""
+    """SYNCs seen on the bus, whoever produced them, with the latest bus timestamp.
+
+    A SYNC may carry the CiA 301 SYNC counter (one data byte, 1..overflow): it
+    numbers the producer's time slots, late or not, which the timestamps alone
+    cannot (a SYNC half a cycle late looks like the next slot's on time).
+    """
 
     def __init__(self) -> None:
         self.seen = 0
         self.last_s = 0.0
+        self.last_counter: int | None = None
 
-    def saw(self, timestamp_s: float) -> None:
-        """Count one SYNC received at ``timestamp_s`` (bus clock)."""
+    def saw(self, timestamp_s: float, data: bytes = b"") -> None:
+        """Count one SYNC received at ``timestamp_s`` (bus clock), with its data bytes."""
         self.seen += 1
         self.last_s = timestamp_s
+        self.last_counter = data[0] if len(data) == 1 else None
+
+
+def sync_slot(
+    previous: int, previous_counter: int | None, counter: int | None, slot_by_time: int
+) -> int:
+    """The producer's time slot of a SYNC, after the one of slot ``previous``.
+
+    Parameters
+    ----------
+    previous
+        Slot of the previous SYNC answered.
+    previous_counter, counter
+        SYNC counters of the previous and this SYNC (None if the SYNC has none).
+    slot_by_time
+        The slot its timestamp suggests (time since the first SYNC over the period,
+        rounded): ambiguous by one for a SYNC sent half a cycle late or more.
+
+    Returns
+    -------
+    int
+        With counters, ``previous`` plus the counter's advance, the whole
+        wraps of the counter taken from the time; without, ``slot_by_time``.
+        Never ``previous`` or before.
+    """
+    if counter is None or previous_counter is None:
+        return max(previous + 1, slot_by_time)
+    advance = (counter - previous_counter) % SYNC_COUNTER_OVERFLOW
+    wraps = round((slot_by_time - previous - advance) / SYNC_COUNTER_OVERFLOW)
+    return max(previous + 1, previous + advance + SYNC_COUNTER_OVERFLOW * max(wraps, 0))
 
 
 class CompensatorTx(Protocol):

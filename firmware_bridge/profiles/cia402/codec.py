@@ -129,9 +129,10 @@ class Cia402Codec:
         raw, counter = RPDO_LAYOUT.unpack(data)
         return int(raw), int(counter)
 
-    def sync_frame(self) -> can.Message:
-        """A SYNC frame (no counter)."""
-        return can.Message(arbitration_id=self.sync_cob_id, data=b"", is_extended_id=False)
+    def sync_frame(self, counter: int | None = None) -> can.Message:
+        """A SYNC frame, with the CiA 301 SYNC counter byte if ``counter`` is given."""
+        data = b"" if counter is None else bytes([counter])
+        return can.Message(arbitration_id=self.sync_cob_id, data=data, is_extended_id=False)
 
     def leave_operation_frame(self) -> can.Message:
         """NMT "enter pre-operational" to the drive: PDOs and their supervision end."""

@@ -9,26 +9,31 @@ from collections.abc import Callable
 
 import can
 
+from firmware_bridge.profiles.base import SYNC_COUNTER_OVERFLOW
 from firmware_bridge.profiles.cia402.codec import Cia402Codec
 
 
 class SyncProducer:
-    """The NC as SYNC master: one SYNC per cycle on the wall clock.
+    """The NC as SYNC master: one SYNC per cycle on the wall clock, with the SYNC counter.
 
     Used when the compensator follows SYNC (``sync_master = false``); in a
-    real installation the NC or another master produces it.
+    real installation the NC or another master produces it. The counter
+    (1..240, CiA 301 0x1019) numbers the grid's slots, so a SYNC sent late
+    still says which slot it belongs to, and a skipped one shows as a gap.
     """
 
     def __init__(self, bus: can.BusABC, codec: Cia402Codec, period_s: float) -> None:
         self.bus = bus
-        self.frame = codec.sync_frame()
+        self.codec = codec
         self.period_s = period_s
         self.sent = 0
+        self.slot = 0  # the grid slot of the next SYNC
 
     def send(self) -> None:
-        """Send one SYNC now."""
-        self.bus.send(self.frame)
+        """Send the SYNC of the current slot now and move to the next slot."""
+        self.bus.send(self.codec.sync_frame(self.slot % SYNC_COUNTER_OVERFLOW + 1))
         self.sent += 1
+        self.slot += 1
 
     def run(self, stop: threading.Event, clock: Callable[[], float] = time.perf_counter) -> None:
         """Send SYNC on a fixed grid until ``stop`` is set (call in a thread or process).
@@ -42,4 +47,5 @@ class SyncProducer:
                 time.sleep(remaining)
             self.send()
             missed = max(0, math.floor((clock() - next_s) / self.period_s))
+            self.slot += missed
             next_s += (1 + missed) * self.period_s

@@ -60,7 +60,7 @@ class Cia402Tx:
         cob_id = msg.arbitration_id
         if cob_id == self.codec.sync_cob_id:
             assert self.sync is not None
-            self.sync.saw(msg.timestamp)
+            self.sync.saw(msg.timestamp, bytes(msg.data))
         elif cob_id == 0x80 + self.cfg.drive_node_id and len(msg.data) >= 2:
             self.emcy_received.append(int.from_bytes(msg.data[:2], "little"))
         elif cob_id == 0x700 + self.cfg.drive_node_id and msg.data[:1] != _BOOTUP:
