@@ -21,7 +21,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Literal, Protocol
+from typing import Any, Literal
 
 import control
 import numba
@@ -31,18 +31,8 @@ from numpy.typing import NDArray
 from gms_comp.arrays import FloatArray
 from gms_comp.config import in_range, non_negative, positive
 from gms_comp.errors import ScenarioError
+from gms_comp.runtime.observer import ForceModel
 from sim.kernels import Pack, truth_force, truth_pack, zero_truth
-
-
-class Friction(Protocol):
-    """A streaming friction model: the resisting force on the carriage."""
-
-    def reset(self) -> None:
-        """Return to the virgin state (at rest, no bristle deflection)."""
-
-    def step(self, position_m: float, velocity_m_s: float) -> float:
-        """Advance to ``position_m`` and return the resisting force in N."""
-        ...
 
 
 class ZeroFriction:
@@ -64,7 +54,7 @@ class ScaledFriction:
     parallel see the same displacement, so one model times their count is exact.
     """
 
-    source: Friction
+    source: ForceModel
     count: float
 
     def reset(self) -> None:
@@ -151,7 +141,7 @@ def linear_system(cfg: PlantConfig) -> control.StateSpace:
     return control.ss(a, b, c, np.zeros((1, 2)))
 
 
-def compiled_truth(friction: Friction, scale: float = 1.0) -> Pack:
+def compiled_truth(friction: ForceModel, scale: float = 1.0) -> Pack:
     """The :mod:`sim.kernels` pack of a friction truth (after its reset).
 
     Raises
@@ -246,7 +236,7 @@ class LinearMotorAxis:
     True
     """
 
-    def __init__(self, cfg: PlantConfig, friction: Friction, servo_period_s: float) -> None:
+    def __init__(self, cfg: PlantConfig, friction: ForceModel, servo_period_s: float) -> None:
         self.cfg = cfg
         self.friction = friction
         discrete = control.c2d(linear_system(cfg), servo_period_s / cfg.substeps, "zoh")

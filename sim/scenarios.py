@@ -40,7 +40,7 @@ from gms_comp.tables.table import GmsTable, read_table
 from sim.closed_loop import RunResult, run
 from sim.controller import CascadeController, ControllerConfig, design
 from sim.link import DirectLink, FeedforwardLink
-from sim.plant import Friction, LinearMotorAxis, PlantConfig, ScaledFriction, compiled_truth
+from sim.plant import LinearMotorAxis, PlantConfig, ScaledFriction, compiled_truth
 from sim.position_loop import PositionLoop, RigidAxisModel, simulate_loop
 from sim.strategies import REGISTRY, STRATEGIES, Calibration, StrategyInputs, calibrate
 from sim.trajectories import Reference, circle, reversals, sine, step_stop, stops
@@ -136,7 +136,7 @@ def build_reference(s: Scenario) -> Reference:
     return ref
 
 
-def ball_set_friction(ball: BallConfig) -> Friction:
+def ball_set_friction(ball: BallConfig) -> ForceModel:
     """The friction truth of one ball set: the physics layer's transient ball model."""
     return BallSetFriction(ball)
 
@@ -152,7 +152,7 @@ def reduced_table(s: Scenario) -> GmsTable:
 class Physics:
     """Where the truth and the table come from (replaceable in tests)."""
 
-    truth: Callable[[BallConfig], Friction] = ball_set_friction
+    truth: Callable[[BallConfig], ForceModel] = ball_set_friction
     table: Callable[[Scenario], GmsTable] = reduced_table
 
 

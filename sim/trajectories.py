@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gms_comp.arrays import FloatArray
+from gms_comp.kinematics import Kinematics
 from gms_comp.physics.profiles import seed_fig7_profile
 
 
@@ -45,6 +46,11 @@ class Reference:
     def duration_s(self) -> float:
         """Length of the trajectory."""
         return self.cycles * self.period_s
+
+    @property
+    def kinematics(self) -> Kinematics:
+        """The reference as the one kinematics record, on its sample times."""
+        return Kinematics(self.time_s, self.position_m, self.velocity_m_s, self.acceleration_m_s2)
 
 
 def from_velocity(

@@ -30,7 +30,6 @@ from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams, GmsStream
 from gms_comp.runtime.observer import ForceModel
 from gms_comp.tables.table import GmsTable
-from sim.plant import Friction
 
 NO_GMS = GmsStream(GmsParams(np.ones(1), np.zeros(1))).kernel
 NO_ARRAY = np.zeros(1)
@@ -88,7 +87,7 @@ class Strategy(Protocol):
         ...
 
 
-def _sweep(truth: Friction, travel_m: float, velocity_m_s: float, samples: int) -> FloatArray:
+def _sweep(truth: ForceModel, travel_m: float, velocity_m_s: float, samples: int) -> FloatArray:
     """Force of ``truth`` along a constant-velocity move from rest."""
     truth.reset()
     x = np.linspace(0.0, travel_m, samples)
@@ -96,7 +95,7 @@ def _sweep(truth: Friction, travel_m: float, velocity_m_s: float, samples: int) 
 
 
 def calibrate(
-    truth: Friction, travel_m: float, velocities_m_s: tuple[float, float], samples: int = 2000
+    truth: ForceModel, travel_m: float, velocities_m_s: tuple[float, float], samples: int = 2000
 ) -> Calibration:
     """Calibrate Coulomb-viscous and LuGre from a fresh ``truth`` (it is reset)."""
     curves = [_sweep(truth, travel_m, v, samples) for v in velocities_m_s]

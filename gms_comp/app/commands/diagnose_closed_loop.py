@@ -42,9 +42,8 @@ class EffectDisturbance:
 def _effect_force(s: Scenario, gms: GmsParams, effects: list[fx.Effect]) -> FloatArray:
     """The physical effects' force along the reference (extended minus plain GMS)."""
     ref = build_reference(s)
-    t = np.arange(ref.cycles) * ref.period_s
     force = simulate(gms, ref.position_m, ref.velocity_m_s)[0]
-    ctx = fx.Context.along(t, ref.position_m, ref.velocity_m_s, ref.acceleration_m_s2, force)
+    ctx = fx.Context.of(ref.kinematics, force)
     return fx.apply_extensions(effects, ctx) - force
 
 

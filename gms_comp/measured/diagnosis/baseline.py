@@ -213,10 +213,9 @@ def _baseline(
     gms = basis.gms(theta[:n_gms])
     parts = []
     for p, (phi, cols) in zip(prepared.parts, designs, strict=True):
-        ctx = fx.Context.along(
-            p.kin.time_s, p.kin.position_m, p.kin.velocity_m_s, p.kin.acceleration_m_s2,
-            phi @ theta[:n_gms], prepared.standstill_speed_m_s, prepared.reversal_deadband_m,
-        )  # fmt: skip
+        ctx = fx.Context.of(
+            p.kin, phi @ theta[:n_gms], prepared.standstill_speed_m_s, prepared.reversal_deadband_m
+        )
         parts.append(FittedPart(p, phi, cols, ctx))
     predictions = tuple(fp.base.values @ theta for fp in parts)
     held = np.concatenate(

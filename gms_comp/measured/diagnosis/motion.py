@@ -9,33 +9,12 @@ kept), which the benchmark applies before least squares and before its error nor
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy import signal
 
 from gms_comp.arrays import FloatArray
+from gms_comp.kinematics import Kinematics
 from gms_comp.measured.traces import Trace
-
-
-@dataclass(frozen=True)
-class Kinematics:
-    """Filtered position and its derivatives on the trace's time base."""
-
-    time_s: FloatArray
-    position_m: FloatArray
-    velocity_m_s: FloatArray
-    acceleration_m_s2: FloatArray
-
-    def __len__(self) -> int:
-        return len(self.time_s)
-
-    def slice(self, start: int, stop: int | None = None) -> Kinematics:
-        """The kinematics of samples ``start`` to ``stop``."""
-        s = slice(start, stop)
-        return Kinematics(
-            self.time_s[s], self.position_m[s], self.velocity_m_s[s], self.acceleration_m_s2[s]
-        )
 
 
 def filtfilt_matlab(b: FloatArray, a: FloatArray, x: FloatArray) -> FloatArray:

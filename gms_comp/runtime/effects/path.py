@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gms_comp.arrays import FloatArray
+from gms_comp.kinematics import Kinematics
 
 # Below this speed an axis counts as standing still unless a caller says otherwise.
 DEFAULT_STANDSTILL_SPEED_M_S = 1e-4
@@ -138,6 +139,30 @@ class Context:
         return cls.with_path(
             t, x, v, np.asarray(acceleration_m_s2, float), np.asarray(gms_force_N, float), path, dt
         )
+
+    @classmethod
+    def of(
+        cls,
+        motion: Kinematics,
+        gms_force_N: ArrayLike,
+        standstill_speed_m_s: float = DEFAULT_STANDSTILL_SPEED_M_S,
+        reversal_deadband_m: float = 0.0,
+    ) -> Context:
+        """The context along ``motion`` (see :meth:`along`)."""
+        return cls.along(
+            motion.time_s,
+            motion.position_m,
+            motion.velocity_m_s,
+            motion.acceleration_m_s2,
+            gms_force_N,
+            standstill_speed_m_s,
+            reversal_deadband_m,
+        )
+
+    @property
+    def kinematics(self) -> Kinematics:
+        """The motion this context is along."""
+        return Kinematics(self.time_s, self.position_m, self.velocity_m_s, self.acceleration_m_s2)
 
     @classmethod
     def with_path(
