@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from gms_comp.config import BallConfig, load_ball_config
 from gms_comp.physics import ball_model
+from gms_comp.physics.config import BallConfig, load_ball_config
 from gms_comp.physics.profiles import seed_fig7_profile
 from gms_comp.physics.transient import BallSetFriction
 

@@ -61,7 +61,7 @@ def _fleet_traces(folder: Path, n: int, samples: int) -> list[FleetJob]:
 
 
 def _warm(_: int) -> int:
-    from gms_comp.config import load_ball_config
+    from gms_comp.physics.config import load_ball_config
     from gms_comp.tables.reduction import reduce_to_gms
 
     reduce_to_gms(load_ball_config(), 4)

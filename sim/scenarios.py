@@ -23,16 +23,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gms_comp.arrays import FloatArray
-from gms_comp.config import (
-    BallConfig,
-    default_config_path,
-    in_range,
-    load_ball_config,
-    parse_section,
-    positive,
-    read_toml,
-)
+from gms_comp.config import default_config_path, in_range, parse_section, positive, read_toml
 from gms_comp.errors import ScenarioError
+from gms_comp.physics.config import BallConfig, load_ball_config
 from gms_comp.physics.transient import BallSetFriction
 from gms_comp.runtime.observer import CompensatorConfig, ForceModel, FrictionObserver
 from gms_comp.tables.reduction import reduce_to_gms

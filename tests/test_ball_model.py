@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from gms_comp.config import BallConfig, ModelConfig, load_ball_config
 from gms_comp.physics import ball_model as bm
+from gms_comp.physics.config import BallConfig, ModelConfig, load_ball_config
 
 # Heathcote's full-slip rolling line: the root of beta^3 - 3 beta + 1 = 0 in (0, 1).
 HEATHCOTE_BETA = 2.0 * math.cos(4.0 * math.pi / 9.0)

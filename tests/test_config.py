@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 from gms_comp.app.cli import main
-from gms_comp.config import default_config_path, load_ball_config
+from gms_comp.config import default_config_path
+from gms_comp.physics.config import load_ball_config
 
 DEFAULT = default_config_path().read_text()
 

@@ -12,8 +12,9 @@ import pytest
 from firmware_bridge.settings import load_can_config
 from gms_comp.app.cli import main
 from gms_comp.app.commands.config import SECTIONS, keys, to_markdown, unit_of
-from gms_comp.config import KNOWN_SECTIONS, load_ball_config
+from gms_comp.config import KNOWN_SECTIONS
 from gms_comp.measured.diagnosis.run import DiagnosisConfig, load_diagnosis_config
+from gms_comp.physics.config import load_ball_config
 from gms_comp.tables.reduction import TableConfig, load_table_config
 from sim.scenarios import load_scenario
 

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import integrate
 
-from gms_comp.config import BearingConfig, load_ball_config
+from gms_comp.physics.config import BearingConfig, load_ball_config
 from gms_comp.physics.contact import hertz_contact
 
 

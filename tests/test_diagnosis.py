@@ -13,11 +13,11 @@ import pytest
 
 from gms_comp.app.cli import main
 from gms_comp.app.commands.demo_trace import MAIN_PARAMETER, generate, scaled_table_trace
-from gms_comp.config import load_ball_config
 from gms_comp.errors import GmsCompError
 from gms_comp.gms import GmsParams
 from gms_comp.measured.diagnosis.run import diagnose
 from gms_comp.measured.traces import Trace, write_trace
+from gms_comp.physics.config import load_ball_config
 from gms_comp.runtime.effects import ExtensionError, effect_from_dict
 from gms_comp.tables.reduction import reduce_to_gms
 from gms_comp.tables.table import GmsTable, read_table, write_table

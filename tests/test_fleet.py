@@ -12,8 +12,8 @@ from gms_comp.app.cli import main
 from gms_comp.app.commands.demo_trace import generate, scaled_table_trace
 from gms_comp.app.fleet import FleetJob, diagnose_fleet, recurring_effects, report_names
 from gms_comp.app.scaleout import dask_client
-from gms_comp.config import load_ball_config
 from gms_comp.measured.traces import write_trace
+from gms_comp.physics.config import load_ball_config
 from gms_comp.tables.reduction import reduce_to_gms
 from gms_comp.tables.table import write_table
 

@@ -21,9 +21,9 @@ from typing import Any
 DOC = Path(__file__).resolve().parents[1] / "docs" / "limits.md"
 
 SECTIONS = (
-    ("bearing", "gms_comp.config", "BearingConfig"),
-    ("stand", "gms_comp.config", "StandConfig"),
-    ("model", "gms_comp.config", "ModelConfig"),
+    ("bearing", "gms_comp.physics.config", "BearingConfig"),
+    ("stand", "gms_comp.physics.config", "StandConfig"),
+    ("model", "gms_comp.physics.config", "ModelConfig"),
     ("table", "gms_comp.tables.reduction", "TableConfig"),
     ("compensator", "gms_comp.runtime.observer", "CompensatorConfig"),
     ("plant", "sim.plant", "PlantConfig"),
@@ -35,7 +35,7 @@ SECTIONS = (
 )
 CAP_MODULES = (
     "gms_comp.validation",
-    "gms_comp.config",
+    "gms_comp.physics.config",
     "gms_comp.physics.contact",
     "gms_comp.tables.table",
     "gms_comp.measured.traces",

@@ -11,10 +11,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gms_comp.app.cli import main
-from gms_comp.config import config_hash, default_config_path, load_ball_config
+from gms_comp.config import config_hash, default_config_path
 from gms_comp.errors import ConfigError
 from gms_comp.gms import GmsParams, simulate
 from gms_comp.physics.ball_model import steady_state
+from gms_comp.physics.config import load_ball_config
 from gms_comp.tables.reduction import (
     TableConfig,
     equal_force_breakpoints,

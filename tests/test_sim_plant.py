@@ -144,7 +144,7 @@ def test_bad_sections_are_refused_naming_the_key(section: str, text: str, key: s
 
 
 def test_energy_balance_with_the_ball_model_truth() -> None:
-    from gms_comp.config import load_ball_config
+    from gms_comp.physics.config import load_ball_config
     from gms_comp.physics.transient import BallSetFriction
     from sim.plant import ScaledFriction
 

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from gms_comp.config import BallConfig, load_ball_config
 from gms_comp.physics import ball_model as bm
+from gms_comp.physics.config import BallConfig, load_ball_config
 from gms_comp.physics.profiles import seed_fig7_profile
 from gms_comp.physics.transient import BallSetFriction
 

@@ -18,7 +18,6 @@ from matplotlib.patches import Patch
 from numpy.typing import NDArray
 
 from gms_comp.atomic import atomic_path
-from gms_comp.config import BallConfig
 from gms_comp.physics.ball_model import (
     StripeModel,
     friction_torque_Nm,
@@ -26,6 +25,7 @@ from gms_comp.physics.ball_model import (
     steady_state,
     stripe_model,
 )
+from gms_comp.physics.config import BallConfig
 from gms_comp.physics.profiles import seed_fig7_profile
 from gms_comp.physics.transient import BallSetFriction
 

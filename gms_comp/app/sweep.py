@@ -37,8 +37,9 @@ import tomli_w
 from gms_comp import __version__
 from gms_comp.app.scaleout import JobResult, ScaleoutConfig, load_scaleout, run_jobs
 from gms_comp.atomic import write_bytes, write_text
-from gms_comp.config import config_hash, default_config_path, load_ball_config, read_toml
+from gms_comp.config import config_hash, default_config_path, read_toml
 from gms_comp.errors import ConfigError, TableError
+from gms_comp.physics.config import load_ball_config
 from gms_comp.tables.table import GmsTable, read_table, write_table
 from gms_comp.validation import (
     MAX_SWEEP_POINTS,

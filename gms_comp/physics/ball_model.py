@@ -24,8 +24,8 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from gms_comp.arrays import FloatArray
-from gms_comp.config import BallConfig, ModelConfig
 from gms_comp.errors import ConfigError
+from gms_comp.physics.config import BallConfig, ModelConfig
 from gms_comp.physics.contact import (
     HertzContact,
     contact_problem,

@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 from scipy.special import ellipe, ellipk
 
-from gms_comp.config import BearingConfig
+from gms_comp.physics.config import BearingConfig
 
 #: Largest contact semi-axis over the ball radius the model accepts. Hertz's half-space
 #: theory needs a contact small against the bodies; beyond half the ball radius the

@@ -33,8 +33,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from gms_comp.arrays import FloatArray
-from gms_comp.config import BallConfig
 from gms_comp.physics.ball_model import area_nodes, steady_state, stripe_model
+from gms_comp.physics.config import BallConfig
 
 # Columns of the per-stripe parameter array.
 _WEIGHT, _HALF, _XI, _UMAX, _SPACING = range(5)

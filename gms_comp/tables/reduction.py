@@ -43,9 +43,10 @@ from scipy.optimize import least_squares
 from tqdm import tqdm
 
 from gms_comp.arrays import FloatArray
-from gms_comp.config import BallConfig, config_hash, in_range, parse_section, read_toml
+from gms_comp.config import config_hash, in_range, parse_section, read_toml
 from gms_comp.errors import ConfigError, InputError
 from gms_comp.gms import GmsParams, element_shape, simulate
+from gms_comp.physics.config import BallConfig
 from gms_comp.physics.contact import contact_problem, hertz_contact
 from gms_comp.physics.profiles import seed_fig7_profile
 from gms_comp.physics.transient import BallSetFriction

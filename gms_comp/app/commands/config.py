@@ -26,15 +26,9 @@ from typing import Any
 from firmware_bridge.settings import CanConfig
 from gms_comp.app.scaleout import ScaleoutConfig
 from gms_comp.atomic import write_text
-from gms_comp.config import (
-    BearingConfig,
-    ModelConfig,
-    StandConfig,
-    default_config_path,
-    parse_section,
-    read_toml,
-)
+from gms_comp.config import default_config_path, parse_section, read_toml
 from gms_comp.measured.diagnosis.run import DiagnosisConfig
+from gms_comp.physics.config import BearingConfig, ModelConfig, StandConfig
 from gms_comp.runtime.observer import CompensatorConfig
 from gms_comp.tables.reduction import TableConfig
 from gms_comp.validation import input_file, output_file

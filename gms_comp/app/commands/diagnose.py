@@ -20,7 +20,7 @@ from tqdm import tqdm
 
 from gms_comp.app.fleet import FleetJob, diagnose_fleet, format_table, report_names
 from gms_comp.app.scaleout import add_cluster_arguments, cli_tls, dask_client
-from gms_comp.config import config_hash, load_ball_config, read_toml
+from gms_comp.config import config_hash, read_toml
 from gms_comp.errors import GmsCompError
 from gms_comp.gms import GmsParams
 from gms_comp.measured.diagnosis import emps
@@ -28,6 +28,7 @@ from gms_comp.measured.diagnosis.phases import phase_label
 from gms_comp.measured.diagnosis.result import parameter_text
 from gms_comp.measured.diagnosis.run import Diagnosis, diagnose, load_diagnosis_config
 from gms_comp.measured.traces import Trace, load_trace, parse_mapping
+from gms_comp.physics.config import load_ball_config
 from gms_comp.runtime.effects import effect_to_dict
 from gms_comp.tables.reduction import reduce_to_gms
 from gms_comp.tables.table import Extension, Fidelity, GmsTable, read_table, write_table

@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from gms_comp.config import BallConfig, load_ball_config
 from gms_comp.physics.ball_model import SteadyResult, steady_state
+from gms_comp.physics.config import BallConfig, load_ball_config
 from gms_comp.validation import output_dir
 
 

@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from gms_comp.config import load_ball_config
+from gms_comp.physics.config import load_ball_config
 from gms_comp.tables.reduction import load_table_config, reduce_to_gms
 from gms_comp.tables.table import write_table
 from gms_comp.validation import output_file
