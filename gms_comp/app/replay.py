@@ -23,8 +23,12 @@ Two timings of the loop (``loop``):
   one), and the drive force acts in the sample it was commanded in (the benchmark's
   reference model, fitted to the force against the centred acceleration, fits it with
   the force of the same sample and worse with the next one's). So the command acts in
-  its own cycle, and the axis force follows it through the drive lag a table's
-  ``drive_lag`` identified (the reference model has none: IDIM-LS fits none).
+  its own cycle, held over it, and the axis force follows it through the drive lag a
+  table's ``drive_lag`` identified, less half a cycle (the reference model has none:
+  IDIM-LS fits none). The diagnosis fits the command against the centred acceleration
+  of the sampled position, so it reads the half cycle by which a held command acts after
+  its sample as lag (a lag-free held command, replayed and diagnosed, gives 0.47 ms at
+  1 kHz); the replay holds the command itself, so only the rest is the drive's.
 """
 
 from __future__ import annotations
@@ -183,12 +187,13 @@ def table_axis_model(
     mass_kg: float,
     where: str,
     reversal_deadband_m: float = REVERSAL_DEADBAND_M,
-    drive_lag: bool = False,
+    held_period_s: float | None = None,
 ) -> RigidAxisModel:
     """The rigid axis of a GMS table and its extensions (``mass_kg`` unless the table
-    has an ``inertia`` extension); with ``drive_lag`` the table's ``drive_lag`` makes
-    the axis force a first-order lag of the command (the record's loop), else it stays
-    out with the other measurement-chain effects (the benchmark's loop)."""
+    has an ``inertia`` extension). Given the period over which the loop holds its
+    command (the record's loop), the table's ``drive_lag`` less half that period makes
+    the axis force a first-order lag of the command; else the lag stays out with the
+    other measurement-chain effects (the benchmark's loop)."""
     fields: dict[str, Any] = {
         "mass_kg": mass_kg,
         "gms": table.params,
@@ -204,8 +209,8 @@ def table_axis_model(
             asymmetry += p["c_diff_Ns_per_m"]
         elif ext.effect == "inertia":
             fields["mass_kg"] = p["mass_kg"]
-        elif ext.effect == "drive_lag" and drive_lag:
-            fields["drive_lag_s"] = p["lag_s"]
+        elif ext.effect == "drive_lag" and held_period_s is not None:
+            fields["drive_lag_s"] = max(p["lag_s"] - 0.5 * held_period_s, 0.0)
         elif ext.effect == "offset":
             fields["offset_N"] = p["offset_N"]
         elif ext.effect == "stribeck":
@@ -251,10 +256,10 @@ class ModelChoice:
 def load_model(
     path: str | Path | None,
     reversal_deadband_m: float = REVERSAL_DEADBAND_M,
-    loop: LoopTiming = "benchmark",
+    held_period_s: float | None = None,
 ) -> ModelChoice:
     """``None``: the benchmark's reference; a GMS table file; a ``diagnose`` JSON (its
-    baseline). On the record's ``loop`` a table's drive lag is part of the plant."""
+    baseline). ``held_period_s``: see :func:`table_axis_model` (the record's loop)."""
     if path is None:
         return ModelChoice("reference", reference_model())
     where = str(path)
@@ -266,7 +271,7 @@ def load_model(
     if isinstance(doc, dict) and doc.get("format") == "gms-comp-table":
         table = table_from_dict(doc, where)
         name = "extended" if table.extensions else "table"
-        axis = table_axis_model(table, mass, where, reversal_deadband_m, loop == "record")
+        axis = table_axis_model(table, mass, where, reversal_deadband_m, held_period_s)
         return ModelChoice(name, axis, table)
     if isinstance(doc, dict) and isinstance(doc.get("baseline"), dict):
         return ModelChoice("baseline", baseline_axis_model(doc["baseline"], where))

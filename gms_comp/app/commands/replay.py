@@ -78,7 +78,8 @@ def register(subparsers: Any) -> None:
         help=(
             "timing of the loop: the benchmark's Simulink loop, a one-sample delay before "
             "the drive and a table's drive lag left out (default; the paper's rows), or the "
-            "record's own, the command acting in its own cycle through the table's drive lag"
+            "record's own, the command acting in its own cycle through the table's drive lag "
+            "less the half cycle it is held for"
         ),
     )
     p.add_argument(
@@ -117,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
     if args.config:
         controller = rp.parse_controller(args.config)
     record = rp.load_record(args.trace, controller, args.time_base, args.loop)
-    choice = rp.load_model(args.model, args.reversal_deadband, args.loop)
+    held = record.loop.period_s if args.loop == "record" else None
+    choice = rp.load_model(args.model, args.reversal_deadband, held)
     print(f"replaying {Path(args.trace).name} with the {choice.name} model ...", file=sys.stderr)
     started = time.perf_counter()
     model_run = rp.replay(record, choice.axis)
