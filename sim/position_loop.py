@@ -304,8 +304,8 @@ def run_position_loop(
             qf += taps[i] * history[i]
         u_new = kv * (kp * (reference_m[k] - q) - (qf - qf_prev) / period) + feedforward[k]
         qf_prev = qf
-        applied = commands[(k - delay) % (delay + 1)] if k >= delay else 0.0
         commands[k % (delay + 1)] = u_new
+        applied = commands[(k - delay) % (delay + 1)] if k >= delay else 0.0
         held = min(max(applied, -limit), limit)
         command = held + _interp(t0, disturbance_t, disturbance, cursor)
         if lag == 0.0:

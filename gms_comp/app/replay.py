@@ -11,6 +11,24 @@ velocity and acceleration from the zero-phase 100 Hz Butterworth of the position
 
 Models: the benchmark's reference IDIM-LS model (its published parameters), a GMS table
 (``diagnose --table`` writes the extended one), or the baseline of a ``diagnose`` JSON.
+
+Two timings of the loop (``loop``):
+
+- ``"benchmark"`` (default): the benchmark's Simulink loop, a one-sample Unit Delay
+  between the controller and the drive and no other drive dynamics; the published
+  reference rows are reproduced on it. A table's ``drive_lag`` stays out of the plant
+  (the delay stands in for it: both together destabilise the replay).
+- ``"record"``: the timing the record itself shows. The recorded EMPS command is the
+  control law of the same sample's position (0.0037 V RMS with no delay, 0.054 V with
+  one), and the drive force acts in the sample it was commanded in (the benchmark's
+  reference model, fitted to the force against the centred acceleration, fits it with
+  the force of the same sample and worse with the next one's). So the command acts in
+  its own cycle, held over it, and the axis force follows it through the drive lag a
+  table's ``drive_lag`` identified, less half a cycle (the reference model has none:
+  IDIM-LS fits none). The diagnosis fits the command against the centred acceleration
+  of the sampled position, so it reads the half cycle by which a held command acts after
+  its sample as lag (a lag-free held command, replayed and diagnosed, gives 0.47 ms at
+  1 kHz); the replay holds the command itself, so only the rest is the drive's.
 """
 
 from __future__ import annotations
@@ -42,6 +60,10 @@ from sim.position_loop import LoopRun, PositionLoop, RigidAxisModel, simulate_lo
 from sim.strategies import CoulombViscous
 
 TimeBase = Literal["simulink", "data"]
+LoopTiming = Literal["benchmark", "record"]
+# Cycles between the controller's output and the drive: the benchmark's Simulink Unit
+# Delay, and the record's own (the recorded command acts in the cycle it is computed in).
+COMMAND_DELAY_CYCLES: dict[str, int] = {"benchmark": 1, "record": 0}
 
 # The benchmark's reference model (EMPS_Description.pdf §3.4, hard-coded in its
 # Simulation_EMPS.m): M [kg], Fv [N s/m], Fc [N], offset [N].
@@ -64,7 +86,8 @@ STEADY_ACCELERATION_M_S2 = 0.05
 REVERSAL_DEADBAND_M = 3e-6
 
 # The measurement chain's effects (the catalogue's measurement_only ones): the rigid axis
-# takes its mass from ``inertia`` and leaves the others out, as the observer does.
+# takes its mass from ``inertia`` and leaves the others out, as the observer does, but for
+# ``drive_lag`` on the record's loop (the axis force lags the command there).
 MEASUREMENT_ONLY = frozenset({"sensor_lowpass", "drive_lag"})
 
 
@@ -82,11 +105,16 @@ class Record:
 
 
 def load_record(
-    path: str | Path, controller: ControllerConfig | None = None, time_base: TimeBase = "simulink"
+    path: str | Path,
+    controller: ControllerConfig | None = None,
+    time_base: TimeBase = "simulink",
+    loop: LoopTiming = "benchmark",
 ) -> Record:
     """Read a closed-loop record: an EMPS ``.mat`` (the loop from its ``kp``, ``kv``,
-    ``gtau``), or any trace with a ``reference_position_m`` column and a
-    ``[controller] structure = "position_velocity"`` section describing its loop.
+    ``gtau``, its command delay from ``loop``: :data:`COMMAND_DELAY_CYCLES`), or any
+    trace with a ``reference_position_m`` column and a
+    ``[controller] structure = "position_velocity"`` section describing its loop (its
+    ``command_delay_cycles`` whatever ``loop``).
 
     ``time_base = "simulink"`` replays as the benchmark's Simulink model does: cycles
     of ``t[9] - t[8]`` from 0, the reference interpolated at them; ``"data"``: one cycle
@@ -113,8 +141,9 @@ def load_record(
             kp_per_s=float(variables["kp"][0]),
             kv_command_s_per_m=float(variables["kv"][0]),
             drive_gain_N_per_command=float(variables["gtau"][0]),
+            command_delay_cycles=COMMAND_DELAY_CYCLES[loop],
         )
-    loop = replace(PositionLoop.from_config(cfg), period_s=period)
+    position_loop = replace(PositionLoop.from_config(cfg), period_s=period)
     cycles = np.arange(t.size) * period + t[0]
     reference = np.interp(cycles, t, trace.reference_position_m) if time_base == "simulink" else (
         np.asarray(trace.reference_position_m, float)
@@ -123,7 +152,7 @@ def load_record(
     disturbance = (t - t[0], pulses) if pulses is not None and pulses.size == t.size else None
     return Record(
         str(path), t, np.asarray(trace.position_m, float), np.asarray(trace.force_N, float),
-        reference, loop, disturbance,
+        reference, position_loop, disturbance,
     )  # fmt: skip
 
 
@@ -154,10 +183,17 @@ def reference_model(parameters: Mapping[str, float] = BENCHMARK_REFERENCE) -> Ri
 
 
 def table_axis_model(
-    table: GmsTable, mass_kg: float, where: str, reversal_deadband_m: float = REVERSAL_DEADBAND_M
+    table: GmsTable,
+    mass_kg: float,
+    where: str,
+    reversal_deadband_m: float = REVERSAL_DEADBAND_M,
+    held_period_s: float | None = None,
 ) -> RigidAxisModel:
     """The rigid axis of a GMS table and its extensions (``mass_kg`` unless the table
-    has an ``inertia`` extension)."""
+    has an ``inertia`` extension). Given the period over which the loop holds its
+    command (the record's loop), the table's ``drive_lag`` less half that period makes
+    the axis force a first-order lag of the command; else the lag stays out with the
+    other measurement-chain effects (the benchmark's loop)."""
     fields: dict[str, Any] = {
         "mass_kg": mass_kg,
         "gms": table.params,
@@ -173,6 +209,8 @@ def table_axis_model(
             asymmetry += p["c_diff_Ns_per_m"]
         elif ext.effect == "inertia":
             fields["mass_kg"] = p["mass_kg"]
+        elif ext.effect == "drive_lag" and held_period_s is not None:
+            fields["drive_lag_s"] = max(p["lag_s"] - 0.5 * held_period_s, 0.0)
         elif ext.effect == "offset":
             fields["offset_N"] = p["offset_N"]
         elif ext.effect == "stribeck":
@@ -216,10 +254,12 @@ class ModelChoice:
 
 
 def load_model(
-    path: str | Path | None, reversal_deadband_m: float = REVERSAL_DEADBAND_M
+    path: str | Path | None,
+    reversal_deadband_m: float = REVERSAL_DEADBAND_M,
+    held_period_s: float | None = None,
 ) -> ModelChoice:
     """``None``: the benchmark's reference; a GMS table file; a ``diagnose`` JSON (its
-    baseline)."""
+    baseline). ``held_period_s``: see :func:`table_axis_model` (the record's loop)."""
     if path is None:
         return ModelChoice("reference", reference_model())
     where = str(path)
@@ -231,7 +271,7 @@ def load_model(
     if isinstance(doc, dict) and doc.get("format") == "gms-comp-table":
         table = table_from_dict(doc, where)
         name = "extended" if table.extensions else "table"
-        axis = table_axis_model(table, mass, where, reversal_deadband_m)
+        axis = table_axis_model(table, mass, where, reversal_deadband_m, held_period_s)
         return ModelChoice(name, axis, table)
     if isinstance(doc, dict) and isinstance(doc.get("baseline"), dict):
         return ModelChoice("baseline", baseline_axis_model(doc["baseline"], where))
