@@ -62,7 +62,11 @@ class CanConfig:
     status_every_cycles: int = field(default=1, metadata=in_range(1, 1000))
 
     def problems(self) -> list[tuple[str, str]]:
-        """Inconsistencies between keys, as ``(key, reason)``."""
+        """`rx_timeout_s`, `ramp_time_s` and `heartbeat_period_s` >= `cycle_period_s`;
+        `compensator_node_id` differs from `drive_node_id`.
+
+        Returns the inconsistencies as ``(key, reason)`` pairs.
+        """
         found = []
         for name in ("rx_timeout_s", "ramp_time_s", "heartbeat_period_s"):
             if getattr(self, name) < self.cycle_period_s:

@@ -71,7 +71,9 @@ class ControllerConfig:
         return 1.0 / self.servo_rate_Hz
 
     def problems(self) -> list[tuple[str, str]]:
-        """Bandwidths must fit under the Nyquist rate and nest (position < velocity)."""
+        """`velocity_bandwidth_Hz` and `velocity_filter_Hz` below half `servo_rate_Hz`;
+        `position_bandwidth_Hz` and `integral_corner_Hz` below `velocity_bandwidth_Hz`;
+        `velocity_fir` 1 to 8 taps summing to 1."""
         found = []
         nyquist = self.servo_rate_Hz / 2
         for name in ("velocity_bandwidth_Hz", "velocity_filter_Hz"):

@@ -63,7 +63,7 @@ class ScenarioConfig:
     calibration_velocities_m_s: tuple[float, ...] = field(default=(0.01, 0.05), metadata=positive())
 
     def problems(self) -> list[tuple[str, str]]:
-        """Two distinct calibration speeds."""
+        """`calibration_velocities_m_s` holds two distinct speeds."""
         v = self.calibration_velocities_m_s
         if len(v) != 2 or v[0] == v[1]:
             return [("calibration_velocities_m_s", f"must be two distinct speeds, got {list(v)}")]

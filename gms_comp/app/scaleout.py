@@ -115,7 +115,10 @@ class ScaleoutConfig:
     tls_key: str = ""
 
     def problems(self) -> list[tuple[str, str]]:
-        """``(key, reason)`` pairs for values that are wrong together."""
+        """`scheduler`, if set, is a scheduler address (`tcp://` or `tls://` host and port).
+
+        Returns ``(key, reason)`` pairs for values that are wrong together.
+        """
         if self.scheduler:
             try:
                 scheduler_address(self.scheduler)

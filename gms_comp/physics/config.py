@@ -32,7 +32,10 @@ class BearingConfig:
     slip_exaggeration: float = field(default=1.0, metadata=in_range(1.0, 10.0))
 
     def problems(self) -> list[tuple[str, str]]:
-        """``(key, reason)`` pairs for values that are wrong together."""
+        """`raceway_radius_m` >= 1.005 x `ball_radius_m`: the groove is wider than the ball.
+
+        Returns ``(key, reason)`` pairs for values that are wrong together.
+        """
         if self.raceway_radius_m < MIN_GROOVE_RATIO * self.ball_radius_m:
             return [
                 (
@@ -82,7 +85,10 @@ class ModelConfig:
     stop_velocity_m_s: float = field(default=1e-6, metadata=in_range(1e-12, 1e-2))
 
     def problems(self) -> list[tuple[str, str]]:
-        """``(key, reason)`` pairs for values that are wrong together."""
+        """`lambda_max` > `lambda_min`.
+
+        Returns ``(key, reason)`` pairs for values that are wrong together.
+        """
         if self.lambda_max <= self.lambda_min:
             return [
                 (

@@ -111,7 +111,7 @@ class CompensatorConfig:
     adaptation_level_bounds: tuple[float, ...] = (0.5, 2.0)
 
     def problems(self) -> list[tuple[str, str]]:
-        """The level bounds must bracket 1."""
+        """`adaptation_level_bounds` is `[lo, hi]` with 0 < lo <= 1 <= hi."""
         lo_hi = self.adaptation_level_bounds
         if len(lo_hi) != 2 or not 0 < lo_hi[0] <= 1.0 <= lo_hi[1]:
             return [

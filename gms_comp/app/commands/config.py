@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import inspect
 import json
 import math
 import re
@@ -229,7 +230,17 @@ def to_markdown(entries: list[Key]) -> str:
             if k.required or k.packaged != k.default:
                 default += f" (Table 1: {_shown(k.packaged)})"
             lines.append(f"| `{k.name}` | {k.unit or '-'} | {default} | {k.accepted or '-'} |")
+        together = _cross_key_rule(cls)
+        if together:
+            lines += ["", f"Checked together: {together}"]
     return "\n".join(lines) + "\n"
+
+
+def _cross_key_rule(cls: type[Any]) -> str:
+    """The rule a section's ``problems()`` checks across keys, from its docstring."""
+    method = getattr(cls, "problems", None)
+    doc = inspect.getdoc(method) if method is not None else None
+    return " ".join(doc.split("\n\n")[0].split()) if doc else ""
 
 
 def _shown(value: Any) -> str:
