@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gms_comp.app import replay
+from gms_comp.app import replay, replay_compensation
 from gms_comp.app.cli import main
 from gms_comp.gms import GmsParams, simulate
 from gms_comp.measured.traces import Trace, write_trace
@@ -182,7 +182,7 @@ def test_compensation_on_the_replayed_axis(tmp_path: Path) -> None:
     def direct() -> Iterator[DirectLink]:
         yield DirectLink()
 
-    ideal, runs = replay.compensation(record, plant, table, direct)
+    ideal, runs = replay_compensation.compensation(record, plant, table, direct)
     scores = {name: s for name, (_, s) in runs.items()}
     assert set(scores) == {"none", "reference", "gms"}
     assert scores["gms"]["rms_friction_error_m"] < 0.2 * scores["none"]["rms_friction_error_m"]

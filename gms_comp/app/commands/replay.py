@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from gms_comp.app import replay as rp
+from gms_comp.app import replay_compensation as rc
 from gms_comp.atomic import atomic_path
 from gms_comp.validation import input_file, output_file
 from sim.link import DirectLink, FeedforwardLink
@@ -149,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
     comp = None
     if choice.table is not None:
         print(f"compensation on the {choice.name} axis ({args.link} link) ...", file=sys.stderr)
-        ideal, comp = rp.compensation(record, choice.axis, choice.table, _links(record, args.link))
+        ideal, comp = rc.compensation(record, choice.axis, choice.table, _links(record, args.link))
         doc["compensation"] = {
             "plant": choice.name,
             "link": args.link,
@@ -322,7 +323,7 @@ def _plot_compensation(
     import matplotlib.pyplot as plt
 
     t = np.arange(record.reference_m.size) * record.loop.period_s
-    turns = rp.reference_reversals(record)
+    turns = rc.reference_reversals(record)
     fig, (ax_all, ax_zoom) = plt.subplots(1, 2, figsize=(12, 4.5))
     first = int(turns[0]) if turns.size else 0
     zoom = slice(max(0, first - 50), first + 200)
