@@ -29,7 +29,6 @@ _diagnosed: dict[tuple[str, int], tuple[Generated, Outcome]] = {}
 # so the parameter too); KNOWN_PARAMETER_MISSES: named right, main parameter off.
 KNOWN_MISSES = {
     ("dwell_time", 101): "named none: gamma 0.088 after dwells of up to 3 s not found",
-    ("unknown_bumps", 101): "named none: friction bumps at 2-4 positions not seen as structure",
     ("pair_drift_reversal_transient", 101): "drift only: the 0.70 N transient over 51 um is "
     "not kept beside it (the free GMS takes most of it, as in reversal_transient-101)",
 }
