@@ -85,6 +85,7 @@ def run_one(
         "main_parameter_error": error,
         "within_tolerance": None if error is None else error <= TOLERANCE[gen.expected],
         "pair_in_order": pair_in_order(gen, outcome) if case.startswith("pair_") else None,
+        "structure": outcome.result.get("structure"),  # why unknown (or not): the findings
         "seconds": outcome.seconds,
     }
     return row

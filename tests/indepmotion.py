@@ -99,7 +99,12 @@ def _cosine_cycles(
     # x = A (1 - cos wt): starts and ends at rest, reverses every half period
     t = np.arange(round(cycles * rate_Hz / frequency_Hz) + 1) / rate_Hz
     omega = 2 * np.pi * frequency_Hz
-    return amplitude_m * omega * np.sin(omega * t)
+    velocity = amplitude_m * omega * np.sin(omega * t)
+    # the last sample lands up to half a sample past the last cycle, where sin has turned:
+    # a "reversal" of ~1e-11 m, far below any encoder step, that is no physical reversal
+    # (it gave a full reversal transient through the rest that follows). End at rest.
+    velocity[-1] = 0.0
+    return velocity
 
 
 def sines(position_m: float, rng: np.random.Generator, rate_Hz: float) -> np.ndarray:

@@ -25,23 +25,30 @@ TIMEOUT_S = float(os.environ.get("GMS_INDEP_TIMEOUT_S", "900"))
 _diagnosed: dict[tuple[str, int], tuple[Generated, Outcome]] = {}
 
 # Cases the diagnosis misses today, measured (issue 15 stays open on them). Strict: the
-# day one passes, the suite says so and the entry must go.
+# day one passes, the suite says so and the entry must go. KNOWN_MISSES: the name (and
+# so the parameter too); KNOWN_PARAMETER_MISSES: named right, main parameter off.
 KNOWN_MISSES = {
     ("dwell_time", 101): "named none: gamma 0.088 after dwells of up to 3 s not found",
-    ("reversal_transient", 101): "named none: a 1.0 N (27 %) transient over 32 um not found",
-    ("unknown_bumps", 101): "named none: friction bumps at 2-4 positions not seen as structure",
+    ("pair_drift_reversal_transient", 101): "drift only: the 0.70 N transient over 51 um is "
+    "not kept beside it (the free GMS takes most of it, as in reversal_transient-101)",
+}
+KNOWN_PARAMETER_MISSES = {
+    ("reversal_transient", 101): "A 0.31 N for 1.0 N (l 105 um for 32 um): the free GMS "
+    "takes the jump at the reversal (a stiff element) and part of the decay",
 }
 
 
-def grid(cases: list[str] | tuple[str, ...]) -> list[object]:
-    """``(case, seed)`` parameters, the known misses marked strict xfail."""
+def grid(
+    cases: list[str] | tuple[str, ...], misses: dict[tuple[str, int], str] = KNOWN_MISSES
+) -> list[object]:
+    """``(case, seed)`` parameters, the known ``misses`` marked strict xfail."""
     return [
         pytest.param(
             case,
             seed,
             id=f"{case}-{seed}",
-            marks=[pytest.mark.xfail(strict=True, reason=KNOWN_MISSES[case, seed])]
-            if (case, seed) in KNOWN_MISSES
+            marks=[pytest.mark.xfail(strict=True, reason=misses[case, seed])]
+            if (case, seed) in misses
             else [],
         )
         for case in cases
@@ -79,7 +86,7 @@ def test_catalogue_effect_is_named_first(effect: str, seed: int, trace_dir: Path
     assert outcome.named == effect, _describe(gen, outcome)
 
 
-@pytest.mark.parametrize(("effect", "seed"), grid(CATALOGUE))
+@pytest.mark.parametrize(("effect", "seed"), grid(CATALOGUE, KNOWN_MISSES | KNOWN_PARAMETER_MISSES))
 def test_catalogue_effect_main_parameter_within_tolerance(
     effect: str, seed: int, trace_dir: Path
 ) -> None:
@@ -104,10 +111,7 @@ def test_uncatalogued_effect_is_unknown(case: str, seed: int, trace_dir: Path) -
     assert outcome.named == "unknown", _describe(gen, outcome)
 
 
-@pytest.mark.parametrize("seed", SEEDS)
-@pytest.mark.parametrize(("big", "small"), PAIRS)
-def test_two_effects_are_ranked_larger_first(
-    big: str, small: str, seed: int, trace_dir: Path
-) -> None:
-    gen, outcome = diagnosed(f"pair_{big}_{small}", seed, trace_dir)
+@pytest.mark.parametrize(("case", "seed"), grid([f"pair_{big}_{small}" for big, small in PAIRS]))
+def test_two_effects_are_ranked_larger_first(case: str, seed: int, trace_dir: Path) -> None:
+    gen, outcome = diagnosed(case, seed, trace_dir)
     assert pair_in_order(gen, outcome), _describe(gen, outcome)

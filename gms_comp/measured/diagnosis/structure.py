@@ -23,7 +23,8 @@ from gms_comp.measured.diagnosis.design import rms
 from gms_comp.measured.diagnosis.phases import phase_label, phase_masks
 
 BINS = 16
-POSITION_BINS = 12
+# per direction: a local feature (a bump, a damaged spot) is a fraction of a mm wide
+POSITION_BINS = 24
 # A tone counts when its peak stands this far above the median of the spectrum.
 TONE_PROMINENCE = 30.0
 TONE_HALF_WIDTH = 2  # bins either side of the peak
