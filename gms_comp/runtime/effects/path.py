@@ -159,11 +159,6 @@ class Context:
             reversal_deadband_m,
         )
 
-    @property
-    def kinematics(self) -> Kinematics:
-        """The motion this context is along."""
-        return Kinematics(self.time_s, self.position_m, self.velocity_m_s, self.acceleration_m_s2)
-
     @classmethod
     def with_path(
         cls, t: FloatArray, x: FloatArray, v: FloatArray, a: FloatArray, f: FloatArray,
