@@ -62,6 +62,7 @@ class DriveEmulator:
         self.max_applied_current_A = 0.0
         self.applied_log: list[tuple[float, bytes]] = []
         self.frames_applied = 0
+        self.output_log: list[tuple[float, float]] | None = None  # (time, A) per cycle, if set
         self.side: DriveSide = get_profile(cfg.profile).make_drive(cfg, bus)
 
     @property
@@ -82,6 +83,8 @@ class DriveEmulator:
         self.cycle += 1
         self.applied_current_A = self.side.from_raw(out)
         self.max_applied_current_A = max(self.max_applied_current_A, abs(self.applied_current_A))
+        if self.output_log is not None:
+            self.output_log.append((now_s, self.applied_current_A))
         return self.applied_current_A
 
     def drain(self, now_s: float) -> None:

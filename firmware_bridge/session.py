@@ -159,6 +159,7 @@ class Rig:
 
     def _drive_report(self) -> dict[str, Any]:
         keys = (
+            "transport_cycles",
             "frames_applied",
             "frames_rejected",
             "frames_resync",
@@ -173,6 +174,7 @@ class Rig:
         transport = int(self.realtime) + int(self.tx.follows_sync)
         status = self.emulator.status()
         return {
+            "transport_cycles": transport,
             "frames_applied": status["frames_applied"],
             "frames_rejected": status["frames_rejected"],
             "frames_resync": status["frames_resync"],
