@@ -31,6 +31,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import can
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from test_can_combined import FAULTS_END_S, VARIANTS, fault_specs, wave
@@ -59,8 +61,16 @@ def run_one(variant: str, seed: int) -> dict[str, Any]:
         return wave(round(t_s * 1e3))
 
     faults = [parse_fault(s) for s in fault_specs(seed)]
+    received: list[tuple[float, int, bytes]] = []  # what the drive got: stamp, id, payload
     with Rig(cfg, faults, seed=seed) as rig:
         rig.drive.output_log = []
+        drive_handle = rig.drive.handle
+
+        def handle(msg: can.Message, now_s: float) -> None:
+            received.append((now_s, msg.arbitration_id, bytes(msg.data)))
+            drive_handle(msg, now_s)
+
+        rig.drive.handle = handle  # type: ignore[method-assign]
         report = stream_on(rig, source, DURATION_S)
         period = cfg.cycle_period_s
         applied = rig.drive.applied_log
@@ -85,15 +95,49 @@ def run_one(variant: str, seed: int) -> dict[str, Any]:
             continue
         age = (t - bounds[1]) / period - transport
         if not is_fresh(age, cfg.max_frame_age_cycles):
-            flagged.append({"seed": seed, "past_window_cycles": age - cfg.max_frame_age_cycles})
+            flagged.append(
+                {
+                    "seed": seed,
+                    "past_window_cycles": age - cfg.max_frame_age_cycles,
+                    **_trace(t, data, bounds, received, period),
+                }
+            )
     return {
         "stale": report["stale_or_corrupt_applied"],
         "rejected": sum(report["frames_rejected"].values()),
+        "resync": report["frames_resync"],
         "fallback_s": held + period,
         "fallback_limit_s": cfg.fallback_time_s,
         "recovery_cycles": recovery,
         "late_cycles": report["late_cycles"],
         "flagged": flagged,
+    }
+
+
+def _trace(
+    applied_s: float,
+    data: bytes,
+    sent: tuple[float, float],
+    received: list[tuple[float, int, bytes]],
+    period_s: float,
+) -> dict[str, Any]:
+    """A flagged frame's history in cycles after the end of its send: receptions, the
+    frames the drive got around it, its application."""
+
+    def cycles(t: float) -> float:
+        return round((t - sent[1]) / period_s, 3)
+
+    near = [
+        f"{cycles(t)}:{arb:03X}:{payload.hex()}"
+        for t, arb, payload in received
+        if sent[0] - 2 * period_s <= t <= applied_s + period_s
+    ]
+    return {
+        "payload": data.hex(),
+        "send_s": sent,
+        "received_at_cycles": [cycles(t) for t, _, payload in received if payload == data],
+        "applied_at_cycles": cycles(applied_s),
+        "drive_got": near,
     }
 
 
@@ -104,9 +148,7 @@ def main() -> None:
     parser.add_argument("--busy", type=int, default=0, help="busy-loop processes beside (0)")
     parser.add_argument("--variant", action="append", choices=list(VARIANTS))
     args = parser.parse_args()
-    busy = [
-        subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.busy)
-    ]
+    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.busy)]
     results: dict[str, Any] = {}
     try:
         for variant in args.variant or list(VARIANTS):
@@ -122,6 +164,7 @@ def main() -> None:
                 "stale_or_corrupt_applied": sum(r["stale"] for r in runs),
                 "runs_with_stale": sum(r["stale"] > 0 for r in runs),
                 "frames_rejected": sum(r["rejected"] for r in runs),
+                "frames_resync": sum(r["resync"] for r in runs),
                 "max_fallback_s": max(r["fallback_s"] for r in runs),
                 "fallback_limit_s": runs[0]["fallback_limit_s"],
                 "fallback_ok": all(r["fallback_s"] <= r["fallback_limit_s"] + 1e-9 for r in runs),
