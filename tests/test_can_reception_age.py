@@ -23,7 +23,7 @@ from firmware_bridge.profiles.cia402.codec import Cia402Codec, load_drive_od
 from firmware_bridge.profiles.e2e.codec import E2eCodec
 from firmware_bridge.profiles.e2e.receiver import E2eReceiver
 from firmware_bridge.settings import CanConfig
-from firmware_bridge.streamer import count_unsent_applied
+from firmware_bridge.streamer import count_unsent_applied, make_tx, profile_bus_load
 from firmware_bridge.supervisor import Supervisor, Verdict
 
 P = 1e-3  # the cycle
@@ -111,3 +111,14 @@ def test_e2e_frame_refused_when_its_cycle_comes_too_late(apply_s: float, applied
     out = receiver.tick(apply_s)
     assert (out == 7) is applied
     assert receiver.counts.counts[Verdict.STALE] == (0 if applied else 1)
+
+
+def test_bus_load_counts_the_nc_sync_counter_byte() -> None:
+    """The NC's SYNC carries the one-byte counter: 8 data bits and, at worst, 2 more stuff
+    bits (34 -> 42 stuffed bits: 8 -> 10 stuff bits) per SYNC, 1000 SYNCs per s at 1 Mbit/s."""
+    master = replace(CanConfig(), profile="cia402")
+    follower = replace(master, sync_master=False)
+    extra = profile_bus_load(follower, make_tx(follower)) - profile_bus_load(
+        master, make_tx(master)
+    )
+    assert extra == pytest.approx(10 * 1000 / 1_000_000)
