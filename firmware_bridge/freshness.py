@@ -131,7 +131,6 @@ class FrameClock:
     ----------
     max_age_cycles
         Validity window: the largest age, in drive cycles, of an applied frame.
-
     period_s
         The drive cycle in s, for :meth:`outlived`; None: no rule by reception stamp.
     transport_cycles
