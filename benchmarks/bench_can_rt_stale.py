@@ -11,9 +11,15 @@ prints per variant as JSON:
 - ``frames_rejected``: frames the drive refused (the faults really hit);
 - ``max_fallback_s`` against ``fallback_limit_s``: the longest time a non-zero
   value stayed applied after the last fresh frame (``rx_timeout + ramp``);
-- ``max_recovery_cycles``: from the end of the faults to the first frame applied;
-- ``flagged``: for each frame the audit flagged, its seed and age in cycles past
-  the window (by its send and, in brackets, by its reception stamp).
+- ``max_recovery_cycles``: from the end of the faults to the first frame applied
+  (null if a run applied none after them: under heavy load a late loop's frames
+  are stale, and cia402 drops RPDOs whose SYNC came more than 1.5 cycles late);
+- ``flagged``: for each frame the audit flagged, its seed, its age past the
+  window in cycles, and its history in cycles after the end of its send (its
+  receptions, its application, the frames the drive got meanwhile: ``080`` SYNC
+  with its counter byte, ``201`` RPDO1 or ``120`` FfCommand with the payload).
+
+Stepped runs of the same faults are exact and in ``tests/test_can_combined.py``.
 
     python benchmarks/bench_can_rt_stale.py [--seeds 20] [--busy 2] [--variant cia402 ...]
 """
@@ -142,6 +148,7 @@ def _trace(
 
 
 def main() -> None:
+    """Run the variants and print the JSON summary (progress per run on stderr)."""
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--seeds", type=int, default=20, help="seeds per variant (20)")
     parser.add_argument("--first-seed", type=int, default=0)
