@@ -62,6 +62,7 @@ class DriveEmulator:
         self.max_applied_current_A = 0.0
         self.applied_log: list[tuple[float, bytes]] = []
         self.frames_applied = 0
+        self.output_log: list[tuple[float, float]] | None = None  # (time, A) per cycle, if set
         self.side: DriveSide = get_profile(cfg.profile).make_drive(cfg, bus)
 
     @property
@@ -82,6 +83,8 @@ class DriveEmulator:
         self.cycle += 1
         self.applied_current_A = self.side.from_raw(out)
         self.max_applied_current_A = max(self.max_applied_current_A, abs(self.applied_current_A))
+        if self.output_log is not None:
+            self.output_log.append((now_s, self.applied_current_A))
         return self.applied_current_A
 
     def drain(self, now_s: float) -> None:
@@ -100,9 +103,12 @@ class DriveEmulator:
         Drive cycles fall on a fixed grid and each frame is handled at its bus
         arrival timestamp, so a thread the OS schedules late still behaves like
         firmware running on time. ``clock`` must share the bus timestamps' epoch;
-        frames without a plausible timestamp are taken as arriving now.
+        frames without a plausible timestamp are taken as arriving now. A frame
+        applies at the first drive cycle after its arrival, and only while fresh
+        by its reception stamp (:meth:`DriveSide.set_real_time`).
         """
         period = self.cfg.cycle_period_s
+        self.side.set_real_time(True)  # a frame applies at the drive cycle after its arrival
         next_tick = clock()
         while not stop.is_set():
             msg = self.bus.recv(timeout=max(0.0, next_tick - clock()))
@@ -144,13 +150,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         overrides = {
             k: v for k in ("profile", "interface", "channel") if (v := getattr(args, k)) is not None
         }
+        if args.nc_sync:  # the compensator follows SYNC: its RPDOs wait for the next one
+            overrides["sync_master"] = False
         cfg = replace(cfg, **overrides)
         with ExitStack() as stack:
             drive = DriveEmulator(cfg, stack.enter_context(open_bus(cfg)))
             devices = []
             if args.nc_sync:
-                nc_cfg = replace(cfg, sync_master=False)
-                nc = get_profile(cfg.profile).make_nc(nc_cfg, stack.enter_context(open_bus(cfg)))
+                nc = get_profile(cfg.profile).make_nc(cfg, stack.enter_context(open_bus(cfg)))
                 if nc is None:
                     raise BusError(f"--nc-sync: profile {cfg.profile} has no SYNC")
                 devices.append(threading.Thread(target=nc.run, args=(stop, time.time)))

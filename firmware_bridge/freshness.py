@@ -22,13 +22,22 @@ outlives a lost link (compensator and drive keep counting cycles), so the first
 frame after an outage is judged like any other. Only a steady run of
 :data:`REANCHOR_FRAMES` consecutive frames that are all late by the same amount
 (a restarted compensator, a drifted clock) re-anchors, without applying them.
+
+The counter dates a frame by the cycle it was made for; it cannot see a frame
+held up in the sender after its cycle began (a compensator descheduled between
+sending the RPDO and the SYNC that applies it). So a receiver that runs on time
+also dates each frame by its **reception stamp** (a controller's hardware
+receive timestamp; python-can's ``msg.timestamp``) and, at the moment it would
+apply it, refuses a frame whose :func:`age_by_time` exceeds the window: the
+audit's own rule, with the send end in place of the reception (which comes no
+later), and the same :func:`transport_cycles`. A frame must pass both rules.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from firmware_bridge.supervisor import Verdict
+from firmware_bridge.supervisor import RejectCounts, Verdict
 
 COUNTER_MODULUS = 256
 AGE_TOLERANCE_CYCLES = 1e-6
@@ -59,6 +68,55 @@ def is_fresh(age_cycles: float, max_age_cycles: float) -> bool:
     return age_cycles <= max_age_cycles + AGE_TOLERANCE_CYCLES
 
 
+def transport_cycles(real_time: bool, waits_for_sync: bool) -> int:
+    """Cycles a fresh frame takes from its send to its application, beyond its age.
+
+    Parameters
+    ----------
+    real_time
+        The drive runs on its own clock and applies a frame at its next cycle
+        after the arrival (stepped, it applies in the cycle of the arrival).
+    waits_for_sync
+        The frame waits for the next SYNC after it (a SYNC follower's RPDO,
+        sent in answer to one SYNC and applied at the next).
+
+    Returns
+    -------
+    int
+        0 stepped, 1 in real time, one more when the frame waits for the next SYNC.
+    """
+    return int(real_time) + int(waits_for_sync)
+
+
+def age_by_time(apply_s: float, sent_s: float, period_s: float, transport: int) -> float:
+    """Age in cycles of a frame sent (or received) at ``sent_s`` and applied at ``apply_s``.
+
+    Parameters
+    ----------
+    apply_s
+        Start of the drive cycle that applies the frame, in s.
+    sent_s
+        When the frame left the sender (the audit: the end of the send call) or
+        reached the receiver (the drive: its reception stamp), in s, on the same clock.
+    period_s
+        The control cycle, in s.
+    transport
+        :func:`transport_cycles` of the stream.
+
+    Returns
+    -------
+    float
+        ``(apply_s - sent_s) / period_s - transport``, compared with :func:`is_fresh`.
+    """
+    return (apply_s - sent_s) / period_s - transport
+
+
+def refuse_outlived(counts: RejectCounts) -> None:
+    """Count a frame accepted by its counter but refused by its reception stamp as stale."""
+    counts.counts[Verdict.ACCEPTED] -= 1
+    counts.add(Verdict.STALE)
+
+
 def _signed(value: int) -> int:
     """``value`` modulo the counter range, as a signed difference."""
     value %= COUNTER_MODULUS
@@ -73,12 +131,19 @@ class FrameClock:
     ----------
     max_age_cycles
         Validity window: the largest age, in drive cycles, of an applied frame.
+    period_s
+        The drive cycle in s, for :meth:`outlived`; None: no rule by reception stamp.
+    transport_cycles
+        :func:`transport_cycles` of the drive's mode (0: stepped, the default).
 
     Call :meth:`judge` for each intact frame, :meth:`tick` once per drive
-    cycle, and :meth:`link_lost` when the supervisor declares the link lost.
+    cycle, :meth:`link_lost` when the supervisor declares the link lost, and
+    :meth:`outlived` on the frame about to be applied.
     """
 
     max_age_cycles: int
+    period_s: float | None = None
+    transport_cycles: int = 0
     cycle: int = 0  # drive cycles, modulo the counter range
     anchored: bool = False
     offset: int = 0  # drive cycle minus counter of a frame of age 0
@@ -96,6 +161,17 @@ class FrameClock:
     def link_lost(self) -> None:
         """Forget the last counter (the anchor stays): any newer frame may follow."""
         self.last_counter = None
+
+    def outlived(self, received_s: float, apply_s: float) -> bool:
+        """Whether a frame received at ``received_s`` is too old to apply at ``apply_s``.
+
+        The second rule, by the frame's reception stamp (see the module docstring):
+        not :func:`is_fresh` by :func:`age_by_time`. Both times in s, on one clock.
+        """
+        if self.period_s is None:
+            return False
+        age = age_by_time(apply_s, received_s, self.period_s, self.transport_cycles)
+        return not is_fresh(age, self.max_age_cycles)
 
     def age(self, counter: int) -> int:
         """Drive cycles the frame with ``counter`` arrives after its own cycle."""

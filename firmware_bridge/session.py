@@ -28,6 +28,7 @@ from firmware_bridge.bus import open_bus
 from firmware_bridge.busload import check_bus_load
 from firmware_bridge.emulator import DriveEmulator
 from firmware_bridge.faults import Fault, FaultyBus
+from firmware_bridge.freshness import transport_cycles
 from firmware_bridge.profiles.base import (
     CompensatorTx,
     Device,
@@ -159,6 +160,7 @@ class Rig:
 
     def _drive_report(self) -> dict[str, Any]:
         keys = (
+            "transport_cycles",
             "frames_applied",
             "frames_rejected",
             "frames_resync",
@@ -169,10 +171,10 @@ class Rig:
         )
         if self.emulator is None:
             return dict.fromkeys(keys)
-        # a follower's RPDO waits for the next SYNC: one cycle more on the way
-        transport = int(self.realtime) + int(self.tx.follows_sync)
+        transport = transport_cycles(self.realtime, self.tx.follows_sync)
         status = self.emulator.status()
         return {
+            "transport_cycles": transport,
             "frames_applied": status["frames_applied"],
             "frames_rejected": status["frames_rejected"],
             "frames_resync": status["frames_resync"],
@@ -368,7 +370,9 @@ def _follower_loop(
 def _await_sync(
     rig: Rig, sync: SyncCounter, seen: int, timeout_s: float, clock: Callable[[], float]
 ) -> bool:
-    """Handle incoming frames until a SYNC beyond the ``seen`` ones arrives."""
+    """Handle incoming frames until a SYNC beyond the ``seen`` ones arrives, then the
+    frames already waiting behind it: a loop that fell behind answers the latest SYNC
+    only, not a backlog of old ones (whose frames would all be late by their counter)."""
     deadline = clock() + timeout_s
     while sync.seen == seen:
         remaining = deadline - clock()
@@ -377,6 +381,8 @@ def _await_sync(
         msg = rig.faulty.recv(timeout=remaining)
         if msg is not None:
             rig.tx.on_reply(msg)
+    while (msg := rig.faulty.recv(timeout=0.0)) is not None:
+        rig.tx.on_reply(msg)
     return True
 
 

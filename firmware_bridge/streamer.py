@@ -18,7 +18,7 @@ from typing import Protocol
 import can
 
 from firmware_bridge.busload import bus_load
-from firmware_bridge.freshness import AGE_TOLERANCE_CYCLES, is_fresh
+from firmware_bridge.freshness import AGE_TOLERANCE_CYCLES, age_by_time, is_fresh
 from firmware_bridge.profiles.base import CompensatorTx, get_profile
 from firmware_bridge.settings import CanConfig
 from firmware_bridge.supervisor import saturate, toward_zero
@@ -174,9 +174,10 @@ def count_unsent_applied(
     max_age_cycles
         The validity window in cycles (``[can] max_frame_age_cycles``).
     transport_cycles
-        Cycles a fresh frame takes from the send to its application: 0 stepped,
-        1 in real time (the drive applies at its next cycle), plus one when the
-        RPDO waits for the next SYNC.
+        Cycles a fresh frame takes from the send to its application
+        (:func:`~firmware_bridge.freshness.transport_cycles`): 0 stepped, 1 in
+        real time, plus one when the RPDO waits for the next SYNC. The drive
+        judges by the same rule from the frame's reception stamp.
 
     Returns
     -------
@@ -195,6 +196,5 @@ def count_unsent_applied(
         if i == 0:
             bad += 1
             continue
-        age_cycles = (t - ends[i - 1]) / period_s - transport_cycles
-        bad += not is_fresh(age_cycles, max_age_cycles)
+        bad += not is_fresh(age_by_time(t, ends[i - 1], period_s, transport_cycles), max_age_cycles)
     return bad

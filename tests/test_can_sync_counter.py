@@ -10,11 +10,15 @@ counter (one byte, 1..240) says which slot a late SYNC belongs to.
 from __future__ import annotations
 
 import itertools
+import math
 import threading
+import time
+from types import SimpleNamespace
 
 import can
 import pytest
 
+from firmware_bridge import session
 from firmware_bridge.profiles.base import SYNC_COUNTER_OVERFLOW, SyncCounter, sync_slot
 from firmware_bridge.profiles.cia402 import nc
 from firmware_bridge.profiles.cia402.codec import Cia402Codec, load_drive_od
@@ -88,3 +92,57 @@ def test_nc_counts_its_grid_slots_including_the_ones_it_skipped(
     steady = sent[late_wakeups:]
     assert all(b - a == 1 for a, b in itertools.pairwise(steady))
     assert max(counters) == SYNC_COUNTER_OVERFLOW and min(counters) == 1
+
+
+def test_a_late_wake_up_sends_the_slot_it_is_in_not_an_old_number(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Sleep overshoots by 2.6 periods every 7th wake-up: each SYNC carries the slot of
+    the time it is sent (floor(t / period)), never the number of a slot already over."""
+    period = 1e-3
+    now = [0.0]
+    wakeups = [0]
+
+    def sleep(seconds: float) -> None:
+        wakeups[0] += 1
+        now[0] += seconds + (2.6 * period if wakeups[0] % 7 == 0 else 0.0)
+
+    monkeypatch.setattr(nc.time, "sleep", sleep)
+    cfg = CanConfig()
+    codec = Cia402Codec(cfg, load_drive_od(cfg.drive_node_id))
+    with can.Bus(interface="virtual", channel="sync-late-wakeup") as bus:
+        producer = SyncProducer(bus, codec, period)
+        stop = threading.Event()
+        sent: list[tuple[int, float]] = []
+
+        def send() -> None:
+            sent.append((producer.slot, now[0]))
+            SyncProducer.send(producer)
+            now[0] += 0.1 * period
+            if len(sent) >= 100:
+                stop.set()
+
+        producer.send = send  # type: ignore[method-assign]
+        producer.run(stop, lambda: now[0])
+    assert wakeups[0] >= 14  # some wake-ups were late
+    assert all(slot == math.floor(t / period + 1e-9) for slot, t in sent)
+
+
+def test_a_follower_behind_answers_the_latest_sync_only() -> None:
+    """Three SYNCs queued while the loop was away: it takes them all, answers the last."""
+    cfg = CanConfig()
+    codec = Cia402Codec(cfg, load_drive_od(cfg.drive_node_id))
+    queued = [codec.sync_frame(c) for c in (5, 6, 7)]
+    sync = SyncCounter()
+
+    class Faulty:
+        def recv(self, timeout: float | None = None) -> can.Message | None:
+            return queued.pop(0) if queued else None
+
+    class Tx:
+        def on_reply(self, msg: can.Message) -> None:
+            sync.saw(0.0, bytes(msg.data))
+
+    rig = SimpleNamespace(faulty=Faulty(), tx=Tx())
+    assert session._await_sync(rig, sync, 0, 1.0, time.monotonic)  # type: ignore[arg-type]
+    assert (sync.seen, sync.last_counter) == (3, 7)

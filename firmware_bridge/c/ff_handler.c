@@ -187,7 +187,8 @@ int16_t ff_tick(struct ff_handler *h)
             h->output_raw = toward_zero(h->output_raw, step);
         }
     }
-    h->has_fresh = false;
+    h->has_fresh = false; /* a frame is applied in the cycle after its reception or never
+                           * (the reception-stamp rule of freshness.py, see ff_handler.h) */
     h->cycle = (uint8_t)(h->cycle + 1u);
     h->last_age = inc_saturating(h->last_age);
     if (h->link_lost && !was_lost) {

@@ -10,6 +10,16 @@
  * when frames stop. The rules match firmware_bridge/profiles/e2e/receiver.py (E2eReceiver) and
  * firmware_bridge/supervisor.py (Supervisor) exactly; the tests feed both the
  * same vectors.
+ *
+ * Freshness has a second rule in firmware_bridge/freshness.py, by the frame's
+ * reception stamp: a drive refuses a frame whose (apply time - reception time)
+ * / period - transport exceeds max_age_cycles, transport being 1 for a drive on
+ * its own clock. This handler needs no clock for it: ff_on_frame runs at the
+ * reception and the frame is applied by the very next ff_tick (the cycle ISR),
+ * or never (has_fresh is cleared there), so apply - reception <= 1 period and the
+ * rule holds for any max_age_cycles >= 0. The Python emulator needs the check
+ * because its thread may run a cycle late against the bus timestamps, and a
+ * CiA 402 RPDO may wait in the window for a SYNC that comes late.
  */
 #ifndef FF_HANDLER_H
 #define FF_HANDLER_H

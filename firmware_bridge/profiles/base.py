@@ -122,11 +122,18 @@ class DriveSide(Protocol):
         ...
 
     def handle(self, msg: can.Message, now_s: float) -> None:
-        """Take one frame received at ``now_s``."""
+        """Take one frame received at ``now_s`` (its reception stamp)."""
+        ...
+
+    def set_real_time(self, real_time: bool) -> None:
+        """Run on the drive's own clock, applying a frame at the cycle after its
+        reception (True), or stepped, applying it in the cycle it arrives (False,
+        the default): the transport of :func:`firmware_bridge.freshness.transport_cycles`."""
         ...
 
     def tick(self, now_s: float, cycle: int) -> tuple[int, bytes | None]:
-        """Run drive cycle ``cycle`` at ``now_s``.
+        """Run drive cycle ``cycle`` at ``now_s``; a frame is applied only if fresh by its
+        counter and, at ``now_s``, by its reception stamp (:mod:`firmware_bridge.freshness`).
 
         Returns
         -------

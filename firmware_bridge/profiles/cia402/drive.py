@@ -42,6 +42,10 @@ class Cia402Drive:
         """Take one frame (RPDO, SYNC, heartbeat, SDO, NMT)."""
         self.receiver.on_message(msg, now_s)
 
+    def set_real_time(self, real_time: bool) -> None:
+        """Run on the drive's own clock (True) or stepped (False)."""
+        self.receiver.set_real_time(real_time)
+
     def tick(self, now_s: float, cycle: int) -> tuple[int, bytes | None]:
         """One drive cycle; the applied 0x60B2 value and the RPDO applied fresh in it."""
         out = self.receiver.tick(now_s)

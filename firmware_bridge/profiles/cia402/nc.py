@@ -38,13 +38,18 @@ class SyncProducer:
     def run(self, stop: threading.Event, clock: Callable[[], float] = time.perf_counter) -> None:
         """Send SYNC on a fixed grid until ``stop`` is set (call in a thread or process).
 
-        A late wake-up sends one SYNC and rejoins the grid, as a master's timer would.
+        A late wake-up sends one SYNC, numbered by the slot it is sent in (the
+        slots already over are skipped, never sent late under their own number),
+        and rejoins the grid, as a master's timer would.
         """
         next_s = clock()
         while not stop.is_set():
             remaining = next_s - clock()
             if remaining > 0:
                 time.sleep(remaining)
+            over = max(0, math.floor((clock() - next_s) / self.period_s))
+            self.slot += over
+            next_s += over * self.period_s
             self.send()
             missed = max(0, math.floor((clock() - next_s) / self.period_s))
             self.slot += missed

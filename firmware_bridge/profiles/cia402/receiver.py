@@ -5,7 +5,7 @@ from __future__ import annotations
 import can
 import canopen
 
-from firmware_bridge.freshness import FrameClock
+from firmware_bridge.freshness import FrameClock, refuse_outlived, transport_cycles
 from firmware_bridge.profiles.cia402.codec import (
     ABORT_ACTIONS,
     ABORT_CONNECTION_OPTION,
@@ -50,9 +50,11 @@ class Cia402Receiver:
         consumer = read_object(node, 0x1016, 1)
         self.heartbeat_producer = 0x700 + ((consumer >> 16) & 0x7F)
         self.heartbeat_timeout_s = (consumer & 0xFFFF) * 1e-3
-        self.clock = FrameClock(cfg.max_frame_age_cycles)
-        self.window: list[bytes] = []
-        self.fresh: tuple[int, bytes] | None = None
+        self.clock = FrameClock(cfg.max_frame_age_cycles, cfg.cycle_period_s)
+        self.waits_for_sync = not cfg.sync_master  # the NC's SYNC follows the RPDO
+        self.set_real_time(False)
+        self.window: list[tuple[bytes, float]] = []  # RPDOs since SYNC, with reception stamps
+        self.fresh: tuple[int, bytes, float] | None = None
         self.applied_data: bytes | None = None
         self.last_sync_s: float | None = None
         self.last_heartbeat_s: float | None = None
@@ -69,7 +71,7 @@ class Cia402Receiver:
             self.counts.add(Verdict.CORRUPT)  # the controller's CRC caught a damaged frame
         elif cob_id == self.codec.rpdo_cob_id:
             if self.codec.unpack_rpdo(bytes(msg.data)) is not None:
-                self.window.append(bytes(msg.data))
+                self.window.append((bytes(msg.data), now_s))
             else:
                 self.counts.add(Verdict.CORRUPT)
         elif cob_id == self.codec.sync_cob_id:
@@ -83,22 +85,27 @@ class Cia402Receiver:
         else:  # SDO, NMT: the canopen LocalNode answers
             self.node.network.notify(cob_id, msg.data, msg.timestamp)
 
+    def set_real_time(self, real_time: bool) -> None:
+        """Whether the drive runs on its own clock (it applies at its next cycle)."""
+        self.clock.transport_cycles = transport_cycles(real_time, self.waits_for_sync)
+
     def _close_window(self) -> None:
         """At SYNC: judge the window's RPDOs in arrival order; the newest fresh one wins.
 
         Frames are dated in drive cycles, which run on time whether SYNC comes
         or not; the compensator numbers its frames by the same time slots (as
-        SYNC follower: the slot of the SYNC it answers).
+        SYNC follower: the slot of the SYNC it answers). The winner is dated
+        once more by its reception stamp when it is applied (:meth:`tick`).
         """
         window, self.window = self.window, []
-        for data in window:
+        for data, received_s in window:
             unpacked = self.codec.unpack_rpdo(data)
             assert unpacked is not None  # checked on arrival
             raw, counter = unpacked
             verdict = self.clock.judge(counter)
             self.counts.add(verdict)
             if verdict is Verdict.ACCEPTED:
-                self.fresh = (raw, data)
+                self.fresh = (raw, data, received_s)
 
     def _on_nmt(self, command: int, node_id: int) -> None:
         """An orderly stop (pre-operational, stopped) ends PDOs and their supervision."""
@@ -125,6 +132,9 @@ class Cia402Receiver:
         # a lost SYNC or heartbeat voids the link; a lost RPDO ends with the next one
         fresh = None if self.active_faults - {EMCY_RPDO_TIMEOUT} else self.fresh
         self.fresh = None
+        if fresh and self.clock.outlived(fresh[2], now_s):  # held up before its SYNC
+            refuse_outlived(self.counts)
+            fresh = None
         was_lost = self.supervisor.link_lost
         out = self.supervisor.tick(fresh[0] if fresh else None)
         self.applied_data = fresh[1] if fresh else None

@@ -51,9 +51,14 @@ class Cia402Tx:
         return self.codec.rpdo_frame(raw, cycle), extra
 
     def traffic(self) -> list[tuple[int, float]]:
-        """RPDO1 (3 bytes) and SYNC every cycle, the heartbeat every heartbeat period."""
-        rate = 1.0 / self.cfg.cycle_period_s  # SYNC is on the bus whoever produces it
-        return [(3, rate), (0, rate), (1, 1.0 / self.cfg.heartbeat_period_s)]
+        """RPDO1 (3 bytes) and SYNC every cycle, the heartbeat every heartbeat period.
+
+        SYNC is on the bus whoever produces it: without data from this compensator,
+        with the one-byte SYNC counter from the NC (:class:`~.nc.SyncProducer`).
+        """
+        rate = 1.0 / self.cfg.cycle_period_s
+        sync_bytes = 0 if self.cfg.sync_master else 1
+        return [(3, rate), (sync_bytes, rate), (1, 1.0 / self.cfg.heartbeat_period_s)]
 
     def on_reply(self, msg: can.Message) -> None:
         """Count SYNCs, the drive's EMCYs and heartbeats."""

@@ -29,7 +29,7 @@ class E2eDrive:
         codec = E2eCodec()
         limit = min(codec.limit_raw, codec.to_raw(cfg.max_current_A))
         supervisor = Supervisor(limit, cfg.timeout_cycles, cfg.ramp_cycles)
-        self.receiver = E2eReceiver(codec, supervisor, cfg.max_frame_age_cycles)
+        self.receiver = E2eReceiver(codec, supervisor, cfg.max_frame_age_cycles, cfg.cycle_period_s)
 
     @property
     def counts(self) -> RejectCounts:
@@ -39,15 +39,19 @@ class E2eDrive:
     def handle(self, msg: can.Message, now_s: float) -> None:
         """Check FfCommand frames; an error frame counts as a corrupt one."""
         if msg.arbitration_id == self.receiver.codec.command.frame_id:
-            self.receiver.on_frame(bytes(msg.data))
+            self.receiver.on_frame(bytes(msg.data), now_s)
         elif msg.is_error_frame:
             self.receiver.counts.add(Verdict.CORRUPT)
 
+    def set_real_time(self, real_time: bool) -> None:
+        """Run on the drive's own clock (True) or stepped (False)."""
+        self.receiver.set_real_time(real_time)
+
     def tick(self, now_s: float, cycle: int) -> tuple[int, bytes | None]:
         """One drive cycle; sends the status frame every ``status_every_cycles``."""
+        out = self.receiver.tick(now_s)  # may still refuse the fresh frame by its stamp
         fresh = self.receiver.fresh_data
         self.receiver.fresh_data = None
-        out = self.receiver.tick()
         if cycle % self.cfg.status_every_cycles == 0:
             rejected = self.counts.total_rejected
             self.bus.send(

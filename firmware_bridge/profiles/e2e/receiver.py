@@ -5,7 +5,7 @@
 
 from __future__ import annotations
 
-from firmware_bridge.freshness import FrameClock
+from firmware_bridge.freshness import FrameClock, refuse_outlived, transport_cycles
 from firmware_bridge.profiles.e2e.codec import E2eCodec
 from firmware_bridge.supervisor import RejectCounts, Supervisor, Verdict
 
@@ -17,23 +17,38 @@ class E2eReceiver:
     its counter is newer than the last accepted one and its age is within
     ``max_age_cycles`` (see :mod:`firmware_bridge.freshness`, the one
     definition of a stale frame). The first intact frame ever only sets the
-    counter reference.
+    counter reference. Given the times (:meth:`on_frame`'s ``received_s``,
+    :meth:`tick`'s ``now_s``), an accepted frame is dated once more by its
+    reception stamp when it would be applied (``period_s`` the drive cycle).
     """
 
     RESYNC, ACTIVE, HOLD, FALLBACK = range(4)  # the DBC's DriveStatus.State values
 
-    def __init__(self, codec: E2eCodec, supervisor: Supervisor, max_age_cycles: int) -> None:
+    def __init__(
+        self,
+        codec: E2eCodec,
+        supervisor: Supervisor,
+        max_age_cycles: int,
+        period_s: float | None = None,
+    ) -> None:
         self.codec = codec
         self.supervisor = supervisor
-        self.clock = FrameClock(max_age_cycles)
+        self.clock = FrameClock(max_age_cycles, period_s)
         self.counts = RejectCounts()
         self.fresh_raw: int | None = None
         self.fresh_data: bytes | None = None
+        self.fresh_received_s: float | None = None
 
-    def on_frame(self, data: bytes) -> Verdict:
-        """Check one received FfCommand payload; returns (and counts) the verdict."""
+    def set_real_time(self, real_time: bool) -> None:
+        """Whether the drive runs on its own clock (it applies at its next cycle)."""
+        self.clock.transport_cycles = transport_cycles(real_time, waits_for_sync=False)
+
+    def on_frame(self, data: bytes, received_s: float | None = None) -> Verdict:
+        """Check one FfCommand payload received at ``received_s``; count and return the verdict."""
         verdict = self._classify(data)
         self.counts.add(verdict)
+        if verdict is Verdict.ACCEPTED:
+            self.fresh_received_s = received_s
         return verdict
 
     def _classify(self, data: bytes) -> Verdict:
@@ -47,11 +62,20 @@ class E2eReceiver:
             self.fresh_data = bytes(data)
         return verdict
 
-    def tick(self) -> int:
-        """One drive cycle: apply the fresh value, if any; return the applied raw value."""
+    def tick(self, now_s: float | None = None) -> int:
+        """One drive cycle (at ``now_s``): apply the fresh value, if any; the applied raw value."""
+        received_s = self.fresh_received_s
+        if (
+            self.fresh_raw is not None
+            and now_s is not None
+            and received_s is not None
+            and self.clock.outlived(received_s, now_s)
+        ):
+            refuse_outlived(self.counts)
+            self.fresh_raw = self.fresh_data = None
         was_lost = self.supervisor.link_lost
         out = self.supervisor.tick(self.fresh_raw)
-        self.fresh_raw = None
+        self.fresh_raw = self.fresh_received_s = None
         self.clock.tick()
         if self.supervisor.link_lost and not was_lost:
             self.clock.link_lost()
