@@ -16,7 +16,7 @@ class DiagnosisConfig:
     # reversal takes a few samples), the benchmark's 100 Hz for a drive force (it needs
     # an acceleration).
     filter_cutoff_Hz: float = field(default=0.0, metadata=in_range(0.0, 1e9))
-    n_elements: int = field(default=12, metadata=in_range(1, 40))
+    n_elements: int = field(default=8, metadata=in_range(1, 40))
     n_blocks: int = field(default=10, metadata=in_range(3, 1000))
     # An effect is kept if it lowers the held-out RMS by more than ``margin`` (relative),
     # or by more than ``small_margin`` with a t statistic over held-out chunks of at
