@@ -29,6 +29,12 @@ Two timings of the loop (``loop``):
   of the sampled position, so it reads the half cycle by which a held command acts after
   its sample as lag (a lag-free held command, replayed and diagnosed, gives 0.47 ms at
   1 kHz); the replay holds the command itself, so only the rest is the drive's.
+
+``gms-comp replay`` uses ``"record"`` with the record's own time stamps (``time_base =
+"data"``) by default and prints the paper's rows, reproduced on the benchmark's timing,
+beside: the Simulink time base's cycles of ``t[9] - t[8]`` drift 0.4 ms from the record's
+clock by the end of DATA_EMPS, which alone puts a +-20 um position error at constant speed
+into any model's replay.
 """
 
 from __future__ import annotations
