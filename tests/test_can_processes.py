@@ -138,6 +138,11 @@ def test_second_stream_on_the_same_multicast_channel_is_refused(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """Issue 13: two streams on one udp_multicast channel applied each other's frames."""
+    # a first `stream` in this process imports and compiles for seconds: done here, on a
+    # virtual channel of its own, so that the second stream below starts while the
+    # first (1.5 s) still runs, whichever test ran before
+    assert main(["stream", "--channel", "warm-up-second-stream", "--duration", "0.05"]) == 0
+    capsys.readouterr()
     cfg = replace(CanConfig(), interface="udp_multicast", channel=GROUP, profile="e2e")
     reports: list[dict[str, Any]] = []
     first = threading.Thread(
@@ -145,7 +150,12 @@ def test_second_stream_on_the_same_multicast_channel_is_refused(
     )
     first.start()
     try:
-        time.sleep(0.5)
+        # start the second once the first is on the bus (a fixed wait was too short when
+        # this test ran first in its process: the first stream was still starting up)
+        with can.Bus(interface="udp_multicast", channel=GROUP) as listener:
+            deadline = time.monotonic() + 20.0
+            while listener.recv(0.1) is None and time.monotonic() < deadline:
+                pass
         args = ["--interface", "udp_multicast", "--channel", GROUP, "--profile", "e2e"]
         code = main(["stream", *args, "--duration", "0.1"])
     finally:
