@@ -93,9 +93,13 @@ def run_one(variant: str, seed: int) -> dict[str, Any]:
     first_after = next((t for t in fresh_times if t >= end), None)
     recovery = None if first_after is None else round((first_after - end) / period)
     flagged = []
-    by_payload = {data: (before, after) for before, after, data in sent}
+    by_payload: dict[bytes, list[tuple[float, float]]] = {}
+    for before, after, data in sent:
+        by_payload.setdefault(data, []).append((before, after))
     for t, data in applied:
-        bounds = by_payload.get(data)
+        # the audit's match: the latest send of this payload begun by the application
+        sends = [b for b in by_payload.get(data, []) if b[0] <= t + 1e-6 * period]
+        bounds = sends[-1] if sends else None
         if bounds is None:
             flagged.append({"seed": seed, "unsent": True})
             continue
