@@ -57,7 +57,46 @@ def test_path_dwell_is_length_of_last_standstill() -> None:
     assert ctx.dwell_s[50] == 0.0  # no standstill yet
     assert ctx.dwell_s[450] == pytest.approx(0.3, abs=1e-9)
     assert ctx.moving[200] == 0.0 and ctx.moving[450] == 1.0
-    assert ctx.distance_since_start_m[450] == pytest.approx(50 * 1e-6, rel=1e-6)
+    # counted from the rest position: samples 400-450 each moved 1 um
+    assert ctx.distance_since_start_m[450] == pytest.approx(51 * 1e-6, rel=1e-6)
+
+
+def test_slow_break_away_is_dated_by_the_rest_band_not_the_speed() -> None:
+    # 0.3 s at rest read through a 5 nm encoder, then a start whose speed rises by 1 mm/s
+    # per second: it stays below a 0.5 mm/s standstill speed for 0.5 s and 125 um
+    dt, step = 1e-3, 5e-9
+    t = np.arange(1000) * dt
+    moving = np.clip(t - 0.4, 0.0, None)
+    x_true = 1e-3 * 0.5 * moving**2 + 1e-3
+    x = np.round(x_true / step) * step
+    v = 1e-3 * moving
+    by_speed = fx.Context.along(t, x, v, 0 * t, 1.0 + 0 * t, 5e-4)
+    by_band = fx.Context.along(t, x, v, 0 * t, 1.0 + 0 * t, 5e-4, rest_band_m=1.5 * step)
+    first_step = int(np.argmax(np.abs(x - x[0]) > 1.5 * step))
+    late = 500
+    # by speed: the axis counts as resting until 0.9 s, 125 um after it left
+    assert by_speed.resting[late] == 1.0
+    # by the band: resting ends on the first steps beyond it, the dwell is the whole stop
+    # and the distance counts from where it stood
+    assert by_band.resting[first_step - 1] == 1.0 and by_band.resting[first_step] == 0.0
+    assert by_band.dwell_s[late] == pytest.approx(0.4 + (first_step - 400) * dt, abs=1.5 * dt)
+    assert by_band.distance_since_start_m[late] == pytest.approx(x[late] - x[0], abs=step)
+    # the break-away window of a dwell gain follows the band's start
+    effect = fx.DwellTime(0.1, 0.05, 1e-6)
+    assert np.all(effect.basis(by_speed, effect.shape())[first_step:late] == 0.0)
+    assert np.count_nonzero(effect.basis(by_band, effect.shape())[first_step:late]) > 50
+
+
+def test_settling_after_a_stop_is_not_a_start() -> None:
+    # a stop that creeps by a few encoder steps over 10 ms, then rests 0.5 s: one rest
+    dt, step = 1e-3, 5e-9
+    t = np.arange(800) * dt
+    x = np.concatenate([np.arange(100) * 1e-6, 99e-6 + step * np.minimum(np.arange(700), 4)])
+    x = np.round(x / step) * step
+    v = np.gradient(x, t)
+    ctx = fx.Context.along(t, x, v, 0 * t, 0 * t, 5e-4, rest_band_m=1.5 * step)
+    assert np.all(ctx.resting[110:] == 1.0)
+    assert np.all(ctx.dwell_s[:] == 0.0)  # no start yet: no dwell ended
 
 
 def test_ripple_coefficients_round_trip() -> None:

@@ -64,7 +64,7 @@ def draw_effect(
     effects: dict[str, fx.Effect] = {
         "viscous": fx.Viscous(u(0.15, 0.4) * level / vmax),
         "stribeck": fx.Stribeck(u(1.3, 1.8), u(0.05, 0.2) * vmax),
-        "dwell_time": fx.DwellTime(u(0.15, 0.3), u(0.01, 0.05), tracegen.TRUTH_PRESLIDING_M),
+        "dwell_time": fx.DwellTime(u(0.15, 0.3), u(0.01, 0.05), 0.1 * tracegen.TRUTH_PRESLIDING_M),
         "position_ripple": fx.PositionRipple(
             u(0.08, 0.2) * level, u(0.5e-3, 3e-3), u(-math.pi, math.pi)
         ),
@@ -77,6 +77,10 @@ def draw_effect(
     return effects[name]
 
 
+# Below this speed the truth stands still (its trajectories stop exactly).
+TRUTH_STANDSTILL_SPEED_M_S = 1e-9
+
+
 def generate(
     hidden: str, seed: int, scale: float = 0.5, sample_rate_Hz: float = 1000.0
 ) -> GeneratedTrace:
@@ -87,8 +91,10 @@ def generate(
     truth = tracegen.truth(scale=scale, sample_rate_Hz=sample_rate_Hz)
     t, x, v = truth.time_s, truth.position_m, truth.velocity_m_s
     effect = draw_effect(hidden, rng, t, v, truth.sliding_force_N)
+    # the truth rests while it does not move (not below a speed threshold of the
+    # diagnosis's choosing: a break-away starts with the first nanometre)
     ctx = fx.Context.along(
-        t, x, v, truth.acceleration_m_s2, truth.gms_force_N, 0.01 * float(np.max(np.abs(v)))
+        t, x, v, truth.acceleration_m_s2, truth.gms_force_N, TRUTH_STANDSTILL_SPEED_M_S
     )
     force = fx.apply_extensions([] if effect is None else [effect], ctx)
     force, measured_x = tracegen.measure(force, x, truth.sliding_force_N, rng)

@@ -214,8 +214,9 @@ def _baseline(
     parts = []
     for p, (phi, cols) in zip(prepared.parts, designs, strict=True):
         ctx = fx.Context.of(
-            p.kin, phi @ theta[:n_gms], prepared.standstill_speed_m_s, prepared.reversal_deadband_m
-        )
+            p.kin, phi @ theta[:n_gms], prepared.standstill_speed_m_s,
+            prepared.reversal_deadband_m, prepared.rest_band_m,
+        )  # fmt: skip
         parts.append(FittedPart(p, phi, cols, ctx))
     predictions = tuple(fp.base.values @ theta for fp in parts)
     held = np.concatenate(

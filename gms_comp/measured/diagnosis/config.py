@@ -49,6 +49,10 @@ class DiagnosisConfig:
     # an encoder step is a fraction of a step (raise it above 1 for an encoder that
     # dithers by a count at a standstill).
     reversal_deadband_steps: float = field(default=0.6, metadata=in_range(0.0, 1e3))
+    # A standstill ends when the position leaves this many steps around where the axis
+    # came to rest (a count of dither is not a start; 0: when the speed exceeds the
+    # standstill speed, which dates a slow break-away late and misses its first travel).
+    rest_band_steps: float = field(default=1.5, metadata=in_range(0.0, 1e3))
     # A calibrated GMS table is the baseline if its held-out RMS is at most this much
     # (relative) above the free NNLS GMS's: its parameters mean something, the free
     # GMS's a little better fit on the training trace may be its flexibility only.

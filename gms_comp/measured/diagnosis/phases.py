@@ -20,8 +20,12 @@ def phase_masks(ctx: fx.Context, presliding_m: float) -> dict[str, BoolArray]:
     and steady sliding split by direction and by speed (three bins of equal count)."""
     moving = ctx.moving > 0
     after_reversal = moving & (ctx.distance_since_reversal_m < presliding_m)
+    # a break-away starts with the first steps from the rest position, below any speed
     breakaway = (
-        moving & ~after_reversal & (ctx.dwell_s > 0) & (ctx.distance_since_start_m < presliding_m)
+        (ctx.resting == 0)
+        & ~after_reversal
+        & (ctx.dwell_s > 0)
+        & (ctx.distance_since_start_m < presliding_m)
     )
     accel = np.abs(ctx.acceleration_m_s2)
     accelerating = (
@@ -30,7 +34,7 @@ def phase_masks(ctx: fx.Context, presliding_m: float) -> dict[str, BoolArray]:
     masks: dict[str, BoolArray] = {
         "presliding_after_reversal": after_reversal,
         "breakaway_after_standstill": breakaway,
-        "standstill": ~moving,
+        "standstill": ~moving & ~breakaway,
         "acceleration": accelerating,
     }
     sliding = moving & ~after_reversal & ~breakaway & ~accelerating

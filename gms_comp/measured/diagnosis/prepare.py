@@ -47,6 +47,7 @@ class Prepared:
     standstill_speed_m_s: float
     reversal_deadband_m: float
     position_resolution_m: float
+    rest_band_m: float
 
     @property
     def main(self) -> Part:
@@ -92,7 +93,8 @@ def prepare(
             Part(kin, trace.force_N, np.ones(n, dtype=bool), np.zeros(n, dtype=bool)),
             Part(vkin, validation.force_N, np.zeros(m, dtype=bool), np.ones(m, dtype=bool)),
         )
-    return Prepared(parts, drive, force_kind, still, deadband, resolution)
+    rest_band = cfg.rest_band_steps * resolution
+    return Prepared(parts, drive, force_kind, still, deadband, resolution, rest_band)
 
 
 def check_usable(trace: Trace, kin: Kinematics, deadband_m: float, still_m_s: float) -> None:

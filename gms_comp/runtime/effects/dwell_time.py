@@ -1,5 +1,16 @@
 """``dwell_time``: break-away limits after a standstill of duration t_d scaled by
-1 + gamma ln(1 + t_d/tau), gamma >= 0; the gain is lost once the elements slip again."""
+1 + gamma ln(1 + t_d/tau), gamma >= 0; the gain is lost once the elements slip again.
+
+A raised limit does not raise the force at once: an element that has come to rest at its
+limit x_i stretches on with its stiffness k_i for another gamma L x_i (L = ln(1 + t_d/tau))
+before it slips back to its old limit. Over the elements the extra force after a travel s
+from the rest position is s times the stiffness of the elements not yet slipped; for
+limits spread exponentially about a length x (stiffness F/x in all, F the GMS force) it is
+
+    gamma F (s / w) exp(-s / (w L)),  w = gamma x,
+
+a ramp that peaks at gamma L F / e after a travel w L and is gone a few w L later. With
+the shape (tau, w) fixed it is linear in gamma, a column of the design."""
 
 from __future__ import annotations
 
@@ -16,12 +27,16 @@ from gms_comp.runtime.effects.path import Context
 # The time constants the diagnosis considers (s): far below a servo cycle or above a
 # trace's length a dwell gain cannot be told from a constant one.
 TAU_RANGE_S = (1e-4, 1e2)
+# Beyond this many decay lengths the ramp is taken as gone (6 e^-6 is 4 % of its peak):
+# its support, where the diagnosis judges it, stays where it acts.
+MAX_DECAYS = 6.0
 
 
 @dataclass(frozen=True)
 class DwellTime(Effect):
-    """Break-away force raised by 1 + gamma ln(1 + t_d/tau) until ``breakaway_m`` of
-    travel after the standstill (then the elements slip and the gain is gone)."""
+    """Break-away limits raised by 1 + gamma ln(1 + t_d/tau) after a standstill;
+    ``breakaway_m`` is w = gamma x, the extra stretch of the elements per unit of the
+    logarithm (so the raised force is lost over a few ``breakaway_m`` ln(1 + t_d/tau))."""
 
     name: ClassVar[str] = "dwell_time"
     SHAPE: ClassVar[tuple[str, ...]] = ("tau_s", "breakaway_m")
@@ -32,10 +47,14 @@ class DwellTime(Effect):
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:
-        """The GMS force times ln(1 + t_d/tau) inside the break-away window."""
-        window = ctx.moving * (ctx.distance_since_start_m < shape["breakaway_m"])
+        """F (s / w) exp(-s / (w L)) after a standstill (module docstring), 0 at rest."""
+        w = shape["breakaway_m"]
         gain = np.log1p(ctx.dwell_s / max(shape["tau_s"], TAU_RANGE_S[0]))
-        return (ctx.gms_force_N * gain * window)[:, None]
+        s = ctx.distance_since_start_m
+        decay = np.zeros_like(s)
+        raised = (gain > 0.0) & (ctx.resting == 0.0) & (s < MAX_DECAYS * w * gain)
+        decay[raised] = np.exp(-s[raised] / (w * gain[raised]))
+        return (ctx.gms_force_N * (s / w) * decay)[:, None]
 
     @classmethod
     def from_coefficients(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Effect:
@@ -48,15 +67,16 @@ class DwellTime(Effect):
 
     @classmethod
     def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
-        """tau over five decades from 1 ms, windows of 0.5-2 presliding lengths."""
+        """tau over five decades from 1 ms; w from 1 % to 30 % of the presliding length
+        (gamma 0.01-0.3 of limits spread over about that length)."""
         top = min(TAU_RANGE_S[1], duration(ctx))
         return [
             {"tau_s": float(tau), "breakaway_m": scale * presliding_m}
             for tau in np.geomspace(1e-3, max(top, 2e-3), 9)
-            for scale in (0.5, 1.0, 2.0)
+            for scale in (0.01, 0.03, 0.1, 0.3)
         ]
 
     @classmethod
     def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
-        """tau in ``TAU_RANGE_S``; the window within 0.1-10 presliding lengths."""
-        return {"tau_s": TAU_RANGE_S, "breakaway_m": (0.1 * presliding_m, 10 * presliding_m)}
+        """tau in ``TAU_RANGE_S``; w within 0.1 % to 3 presliding lengths."""
+        return {"tau_s": TAU_RANGE_S, "breakaway_m": (1e-3 * presliding_m, 3 * presliding_m)}

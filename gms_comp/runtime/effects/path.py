@@ -23,11 +23,17 @@ DEFAULT_STANDSTILL_SPEED_M_S = 1e-4
 # A standstill ends once the speed exceeds this multiple of the standstill speed.
 RESUME_FACTOR = 2.0
 
+# With a rest band, a position held within it this long is a rest, and a rest this long
+# ends when the position leaves the band (before that, leaving it is the stop settling).
+REST_HOLD_S = 0.02
+
 # Layout of the path-state vector.
 (_FIRST, _PREV_X, _CUM, _DIR, _CUM_AT_REVERSAL, _STILL, _STILL_SINCE, _DWELL, _CUM_AT_RESUME,
- _T0, _EXTREME, _CUM_AT_EXTREME, _N_STATE) = range(13)  # fmt: skip
+ _T0, _EXTREME, _CUM_AT_EXTREME, _REST, _ANCHOR, _CAND_X, _CAND_T,
+ _N_STATE) = range(17)  # fmt: skip
 # Layout of one output row.
-_OUT_DIR, _OUT_S_REV, _OUT_DWELL, _OUT_S_START, _OUT_MOVING, _OUT_ELAPSED, N_OUT = range(7)
+(_OUT_DIR, _OUT_S_REV, _OUT_DWELL, _OUT_S_START, _OUT_MOVING, _OUT_RESTING, _OUT_ELAPSED,
+ N_OUT) = range(8)  # fmt: skip
 
 
 @numba.njit(cache=True)
@@ -53,9 +59,47 @@ def _direction_step(state: FloatArray, x: float, v: float, deadband: float) -> N
 
 
 @numba.njit(cache=True)
+def _start(state: FloatArray, t: float, x: float) -> None:
+    """The motion resumes: the dwell ends and the distance counts from the rest position."""
+    state[_DWELL] = t - state[_STILL_SINCE]
+    state[_CUM_AT_RESUME] = state[_CUM] - abs(x - state[_ANCHOR])
+    state[_REST] = 0.0
+
+
+@numba.njit(cache=True)
+def _rest_step(state: FloatArray, t: float, x: float, still: bool, band: float) -> None:
+    """The rest (standstill) state: entered when the speed falls below the standstill speed
+    or, with a ``band``, when the position has stayed within it for ``REST_HOLD_S``; left
+    when the speed rises again or, after a rest of ``REST_HOLD_S``, when the position
+    leaves the band around where it came to rest (so a slow break-away is dated and
+    measured from its first steps, not from when it reaches the standstill speed)."""
+    was_still = state[_STILL] == 1.0
+    if abs(x - state[_CAND_X]) > band:
+        state[_CAND_X] = x
+        state[_CAND_T] = t
+    if state[_REST] == 1.0:
+        if not still:
+            _start(state, t, x)
+        elif band > 0.0 and abs(x - state[_ANCHOR]) > band:
+            if t - state[_STILL_SINCE] < REST_HOLD_S:  # still settling: rest from here
+                state[_ANCHOR] = x
+                state[_STILL_SINCE] = t
+            else:
+                _start(state, t, x)
+    elif still and not was_still:
+        state[_REST] = 1.0
+        state[_ANCHOR] = x
+        state[_STILL_SINCE] = t
+    elif band > 0.0 and t - state[_CAND_T] >= REST_HOLD_S:
+        state[_REST] = 1.0
+        state[_ANCHOR] = state[_CAND_X]
+        state[_STILL_SINCE] = state[_CAND_T]
+
+
+@numba.njit(cache=True)
 def path_step(
     state: FloatArray, t: float, x: float, v: float, still_speed: float, deadband: float,
-    out: FloatArray,
+    rest_band: float, out: FloatArray,
 ) -> None:  # fmt: skip
     """Advance the path ``state`` by one sample and write its quantities to ``out``."""
     first = state[_FIRST] == 1.0
@@ -66,11 +110,9 @@ def path_step(
     still = abs(v) < (RESUME_FACTOR * still_speed if state[_STILL] == 1.0 else still_speed)
     if first:
         state[_T0] = t
-    if still and (first or state[_STILL] == 0.0):
-        state[_STILL_SINCE] = t
-    if not still and not first and state[_STILL] == 1.0:
-        state[_DWELL] = t - state[_STILL_SINCE]
-        state[_CUM_AT_RESUME] = state[_CUM]
+        state[_CAND_X] = x
+        state[_CAND_T] = t
+    _rest_step(state, t, x, still, rest_band)
     state[_STILL] = 1.0 if still else 0.0
     state[_PREV_X] = x
     state[_FIRST] = 0.0
@@ -79,17 +121,18 @@ def path_step(
     out[_OUT_DWELL] = state[_DWELL]
     out[_OUT_S_START] = state[_CUM] - state[_CUM_AT_RESUME]
     out[_OUT_MOVING] = 0.0 if still else 1.0
+    out[_OUT_RESTING] = state[_REST]
     out[_OUT_ELAPSED] = t - state[_T0]
 
 
 @numba.njit(cache=True)
 def _path_run(
     state: FloatArray, t: FloatArray, x: FloatArray, v: FloatArray, still_speed: float,
-    deadband: float,
+    deadband: float, rest_band: float,
 ) -> FloatArray:  # fmt: skip
     out = np.empty((t.size, N_OUT))
     for i in range(t.size):
-        path_step(state, t[i], x[i], v[i], still_speed, deadband, out[i])
+        path_step(state, t[i], x[i], v[i], still_speed, deadband, rest_band, out[i])
     return out
 
 
@@ -115,6 +158,7 @@ class Context:
     dwell_s: FloatArray
     distance_since_start_m: FloatArray
     moving: FloatArray
+    resting: FloatArray
     elapsed_s: FloatArray
     sample_time_s: float
 
@@ -128,13 +172,18 @@ class Context:
         gms_force_N: ArrayLike,
         standstill_speed_m_s: float = DEFAULT_STANDSTILL_SPEED_M_S,
         reversal_deadband_m: float = 0.0,
+        rest_band_m: float = 0.0,
     ) -> Context:
         """The context of a whole trajectory (a reversal needs a retreat of more than
-        ``reversal_deadband_m``: set it above the position noise)."""
+        ``reversal_deadband_m``: set it above the position noise; a rest ends when the
+        position leaves ``rest_band_m`` around where it stopped, or with 0 when the speed
+        exceeds the standstill speed)."""
         t = np.ascontiguousarray(time_s, dtype=np.float64)
         x = np.ascontiguousarray(position_m, dtype=np.float64)
         v = np.ascontiguousarray(velocity_m_s, dtype=np.float64)
-        path = _path_run(fresh_path_state(), t, x, v, standstill_speed_m_s, reversal_deadband_m)
+        path = _path_run(
+            fresh_path_state(), t, x, v, standstill_speed_m_s, reversal_deadband_m, rest_band_m
+        )
         dt = float((t[-1] - t[0]) / (t.size - 1)) if t.size > 1 else 0.0
         return cls.with_path(
             t, x, v, np.asarray(acceleration_m_s2, float), np.asarray(gms_force_N, float), path, dt
@@ -147,6 +196,7 @@ class Context:
         gms_force_N: ArrayLike,
         standstill_speed_m_s: float = DEFAULT_STANDSTILL_SPEED_M_S,
         reversal_deadband_m: float = 0.0,
+        rest_band_m: float = 0.0,
     ) -> Context:
         """The context along ``motion`` (see :meth:`along`)."""
         return cls.along(
@@ -157,6 +207,7 @@ class Context:
             gms_force_N,
             standstill_speed_m_s,
             reversal_deadband_m,
+            rest_band_m,
         )
 
     @classmethod
@@ -172,6 +223,7 @@ class Context:
             dwell_s=path[:, _OUT_DWELL],
             distance_since_start_m=path[:, _OUT_S_START],
             moving=path[:, _OUT_MOVING],
+            resting=path[:, _OUT_RESTING],
             elapsed_s=path[:, _OUT_ELAPSED],
             sample_time_s=sample_time_s,
         )  # fmt: skip

@@ -40,11 +40,13 @@ class ExtensionStream:
         sample_time_s: float,
         standstill_speed_m_s: float = DEFAULT_STANDSTILL_SPEED_M_S,
         reversal_deadband_m: float = 0.0,
+        rest_band_m: float = 0.0,
     ) -> None:
         self.extensions = tuple(extensions)
         self.sample_time_s = sample_time_s
         self.standstill_speed_m_s = standstill_speed_m_s
         self.reversal_deadband_m = reversal_deadband_m
+        self.rest_band_m = rest_band_m
         self._filters = [
             e.filter(sample_time_s) for e in self.extensions if isinstance(e, FilterEffect)
         ]
@@ -66,7 +68,7 @@ class ExtensionStream:
     ) -> float:
         """The extended force for one sample."""
         path_step(self._path, time_s, position_m, velocity_m_s, self.standstill_speed_m_s,
-                  self.reversal_deadband_m, self._row[0])  # fmt: skip
+                  self.reversal_deadband_m, self.rest_band_m, self._row[0])  # fmt: skip
         ctx = Context.with_path(
             np.array([time_s]), np.array([position_m]), np.array([velocity_m_s]),
             np.array([acceleration_m_s2]), np.array([gms_force_N]), self._row,
