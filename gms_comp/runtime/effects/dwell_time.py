@@ -78,5 +78,7 @@ class DwellTime(Effect):
 
     @classmethod
     def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
-        """tau in ``TAU_RANGE_S``; w within 0.1 % to 3 presliding lengths."""
-        return {"tau_s": TAU_RANGE_S, "breakaway_m": (1e-3 * presliding_m, 3 * presliding_m)}
+        """tau in ``TAU_RANGE_S``; w within 1 % to 3 presliding lengths (below, the ramp
+        is over within an encoder step or two of a start, where filter and quantisation
+        make their own)."""
+        return {"tau_s": TAU_RANGE_S, "breakaway_m": (1e-2 * presliding_m, 3 * presliding_m)}
