@@ -9,6 +9,9 @@ prints per variant as JSON:
 
 - ``stale_or_corrupt_applied``: the stream audit's count (the target is 0);
 - ``frames_rejected``: frames the drive refused (the faults really hit);
+- ``max_applied_age_cycles``: the oldest frame applied, by the audit's clock (its
+  age in cycles from the end of its send, less the transport), against the
+  window ``max_frame_age_cycles``: how close the drive came to the boundary;
 - ``max_fallback_s`` against ``fallback_limit_s``: the longest time a non-zero
   value stayed applied after the last fresh frame (``rx_timeout + ramp``);
 - ``max_recovery_cycles``: from the end of the faults to the first frame applied
@@ -93,6 +96,7 @@ def run_one(variant: str, seed: int) -> dict[str, Any]:
     first_after = next((t for t in fresh_times if t >= end), None)
     recovery = None if first_after is None else round((first_after - end) / period)
     flagged = []
+    oldest = -float("inf")
     by_payload: dict[bytes, list[tuple[float, float]]] = {}
     for before, after, data in sent:
         by_payload.setdefault(data, []).append((before, after))
@@ -104,6 +108,7 @@ def run_one(variant: str, seed: int) -> dict[str, Any]:
             flagged.append({"seed": seed, "unsent": True})
             continue
         age = (t - bounds[1]) / period - transport
+        oldest = max(oldest, age)
         if not is_fresh(age, cfg.max_frame_age_cycles):
             flagged.append(
                 {
@@ -120,6 +125,8 @@ def run_one(variant: str, seed: int) -> dict[str, Any]:
         "fallback_limit_s": cfg.fallback_time_s,
         "recovery_cycles": recovery,
         "late_cycles": report["late_cycles"],
+        "max_applied_age": oldest,
+        "window": cfg.max_frame_age_cycles,
         "flagged": flagged,
     }
 
@@ -181,6 +188,8 @@ def main() -> None:
                 "fallback_ok": all(r["fallback_s"] <= r["fallback_limit_s"] + 1e-9 for r in runs),
                 "max_recovery_cycles": None if None in recoveries else max(recoveries),
                 "late_cycles": sum(r["late_cycles"] for r in runs),
+                "max_applied_age_cycles": round(max(r["max_applied_age"] for r in runs), 4),
+                "max_frame_age_cycles": runs[0]["window"],
                 "flagged": [f for r in runs for f in r["flagged"]],
             }
     finally:

@@ -25,6 +25,7 @@ from firmware_bridge.supervisor import Supervisor, Verdict
 C_DIR = packaged_path("c")
 VERDICTS = list(Verdict)
 TIMEOUT, RAMP, MAX_AGE, LIMIT = 3, 4, 1, 20000
+CYCLE_US = 1000
 
 pytestmark = pytest.mark.skipif(
     shutil.which("gcc") is None, reason="gcc is not installed: the C handler cannot be built"
@@ -38,6 +39,9 @@ class CConfig(ctypes.Structure):
         ("timeout_cycles", ctypes.c_uint32),
         ("ramp_cycles", ctypes.c_uint32),
         ("max_age_cycles", ctypes.c_uint32),
+        ("cycle_us", ctypes.c_uint32),
+        ("transport_cycles", ctypes.c_uint32),
+        ("slot_margin_us", ctypes.c_uint32),
     ]
 
 
@@ -85,6 +89,14 @@ def lib(tmp_path_factory: pytest.TempPathFactory) -> ctypes.CDLL:
     lib.ff_handler_size.restype = ctypes.c_size_t
     lib.ff_on_frame.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_size_t]
     lib.ff_tick.restype = ctypes.c_int16
+    lib.ff_tick_at.restype = ctypes.c_int16
+    lib.ff_tick_at.argtypes = [ctypes.c_void_p, ctypes.c_uint32]
+    lib.ff_on_frame_at.argtypes = [
+        ctypes.c_void_p,
+        ctypes.c_char_p,
+        ctypes.c_size_t,
+        ctypes.c_uint32,
+    ]
     lib.ff_crc16.restype = ctypes.c_uint16
     lib.ff_crc16.argtypes = [ctypes.c_char_p, ctypes.c_size_t, ctypes.c_uint16]
     return lib
@@ -94,7 +106,7 @@ class CHandler:
     def __init__(self, lib: ctypes.CDLL, data_id: int) -> None:
         self.lib = lib
         self.mem = ctypes.create_string_buffer(lib.ff_handler_size())
-        cfg = CConfig(data_id, LIMIT, TIMEOUT, RAMP, MAX_AGE)
+        cfg = CConfig(data_id, LIMIT, TIMEOUT, RAMP, MAX_AGE, CYCLE_US, 1, CYCLE_US // 4)
         lib.ff_init(self.mem, ctypes.byref(cfg))
 
     def frame(self, data: bytes) -> Verdict:
@@ -102,6 +114,12 @@ class CHandler:
 
     def tick(self) -> int:
         return int(self.lib.ff_tick(self.mem))
+
+    def frame_at(self, data: bytes, rx_us: int) -> Verdict:
+        return VERDICTS[self.lib.ff_on_frame_at(self.mem, data, len(data), rx_us % 2**32)]
+
+    def tick_at(self, now_us: int) -> int:
+        return int(self.lib.ff_tick_at(self.mem, now_us % 2**32))
 
 
 def py_handler(codec: E2eCodec) -> E2eReceiver:
@@ -169,6 +187,87 @@ def test_c_and_python_agree_on_fault_vectors(lib: ctypes.CDLL, seed: int) -> Non
         Verdict.OUT_OF_ORDER,
         Verdict.STALE,
     }
+
+
+TimedEvent = tuple[str, bytes, int]
+
+
+def timed_vectors(seed: int) -> list[TimedEvent]:
+    """:func:`vectors` on a real-time drive's timer, in microseconds from near the
+    32-bit wrap: drive cycle ``k`` begins at ``T0 + k ms`` (the tick after it, at
+    ``T0 + (k + 1) ms``, applies it); a frame of cycle ``k`` leaves at the seed's phase
+    in the cycle plus up to 0.3 ms of jitter and is received then, or, held up (the
+    generator's delays and replays), anywhere in the cycle it is handed over."""
+    rng = random.Random(1000 + seed)
+    t0 = 2**32 - 37 * CYCLE_US - rng.randrange(CYCLE_US)  # the timer wraps in cycle ~37
+    # even seeds: the compensator's cycles begin within 0.1 cycle after the drive's ticks
+    phase = rng.randrange(CYCLE_US // 10 if seed % 2 == 0 else CYCLE_US)
+    out: list[TimedEvent] = []
+    cycle = 0
+    for kind, data in vectors(seed):
+        if kind == "tick":
+            cycle += 1
+            out.append(("tick", b"", t0 + cycle * CYCLE_US))
+            continue
+        start = t0 + cycle * CYCLE_US
+        own = E2eCodec().check_command(data)
+        on_time = own is not None and own[0] == cycle % 256
+        leave = start + phase + rng.randrange(300)
+        rx = leave if on_time else start + rng.randrange(CYCLE_US)
+        out.append(("frame", data, max(start, min(rx, start + CYCLE_US - 1))))
+    return out
+
+
+def run_both_timed(
+    lib: ctypes.CDLL, events: list[TimedEvent]
+) -> tuple[list[object], list[object], list[int], list[int]]:
+    """The C handler with its timer and the real-time Python receiver with seconds."""
+    codec = E2eCodec()
+    c = CHandler(lib, codec.command_data_id)
+    py = E2eReceiver(codec, Supervisor(LIMIT, TIMEOUT, RAMP), MAX_AGE, CYCLE_US * 1e-6)
+    py.set_real_time(True)
+    c_out: list[object] = []
+    py_out: list[object] = []
+    for kind, data, t_us in events:
+        if kind == "frame":
+            c_out.append(c.frame_at(data, t_us))
+            py_out.append(py.on_frame(data, t_us * 1e-6))
+        else:
+            c_out.append(c.tick_at(t_us))
+            py_out.append(py.tick(t_us * 1e-6))
+    counts = [int(c.lib.ff_count(c.mem, i)) for i in range(len(VERDICTS))]
+    return c_out, py_out, counts, [py.counts.counts[v] for v in VERDICTS]
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_c_and_python_agree_on_timed_fault_vectors(lib: ctypes.CDLL, seed: int) -> None:
+    """By time too (slot, margin, the timer's wrap): same verdicts, outputs and counts.
+    The rule by time refuses more than the counter alone, and strictly more when the
+    compensator's cycles begin within the margin after the drive's ticks (even seeds)."""
+    c_out, py_out, c_counts, py_counts = run_both_timed(lib, timed_vectors(seed))
+    assert c_out == py_out
+    assert c_counts == py_counts
+    untimed = run_both(lib, [(kind, data) for kind, data, _ in timed_vectors(seed)])[1]
+    by_counter = sum(v is Verdict.STALE for v in untimed)
+    by_time = py_counts[VERDICTS.index(Verdict.STALE)]
+    assert by_time > by_counter if seed % 2 == 0 else by_time >= by_counter
+
+
+def test_c_refuses_a_held_frame_by_its_slot_like_python(lib: ctypes.CDLL) -> None:
+    """The hand-worked case of tests/test_can_reception_age.py on the C timer: frames on
+    time 50 us after the ticks; counter 2 left at 1.99 ms, held until 3.95 ms: fresh by
+    its counter (age 1), 1.01 cycles old at the 4 ms tick, refused by its slot less the
+    margin (2.05 - 0.25 ms: 1.2 cycles)."""
+    codec = E2eCodec()
+    c = CHandler(lib, codec.command_data_id)
+    assert c.frame_at(codec.encode_command(0, 5), 50) is Verdict.RESYNC
+    c.tick_at(1000)
+    assert c.frame_at(codec.encode_command(1, 6), 1050) is Verdict.ACCEPTED
+    assert c.tick_at(2000) == 6
+    c.tick_at(3000)
+    assert c.frame_at(codec.encode_command(2, 7), 3950) is Verdict.ACCEPTED
+    assert c.tick_at(4000) == 6  # held, not 7
+    assert c.lib.ff_count(c.mem, VERDICTS.index(Verdict.STALE)) == 1
 
 
 @pytest.mark.parametrize("late_by", range(MAX_AGE + 3))

@@ -21,7 +21,11 @@ struct ff_handler {
     uint8_t late_offset;
     uint8_t late_counter;
     uint32_t late_run;
+    bool has_origin;
+    uint32_t origin_us; /* slot of counter 0: earliest reception - counter x cycle */
     bool has_fresh;
+    bool fresh_timed;
+    uint32_t fresh_sent_us; /* earliest the fresh frame can have left */
     int16_t fresh_raw;
     int16_t output_raw;
     uint32_t cycles_since_fresh;
@@ -67,8 +71,38 @@ static int32_t signed_diff(uint32_t value)
                                          : (int32_t)value;
 }
 
-static void anchor(struct ff_handler *h, uint8_t counter)
+/* slot of the counter step nearest rx_us (the counter unwrapped by time) */
+static uint32_t slot_us(const struct ff_handler *h, uint8_t counter, uint32_t rx_us)
 {
+    int64_t cycle = (int64_t)h->cfg.cycle_us;
+    int64_t span = (int64_t)COUNTER_MODULUS * cycle;
+    int64_t x = (int64_t)(int32_t)(rx_us - h->origin_us) - (int64_t)counter * cycle;
+    int64_t shifted = x + span / 2;
+    int64_t wraps = shifted >= 0 ? shifted / span : -((-shifted + span - 1) / span);
+    return h->origin_us + (uint32_t)(((int64_t)counter + wraps * COUNTER_MODULUS) * cycle);
+}
+
+/* freshness.FrameClock._set_origin */
+static void set_origin(struct ff_handler *h, uint8_t counter, const uint32_t *rx_us,
+                       bool earlier_only)
+{
+    if (rx_us == NULL || h->cfg.cycle_us == 0u) {
+        return;
+    }
+    if (!h->has_origin || !earlier_only) {
+        h->origin_us = *rx_us - (uint32_t)counter * h->cfg.cycle_us;
+        h->has_origin = true;
+        return;
+    }
+    uint32_t slot = slot_us(h, counter, *rx_us);
+    if ((int32_t)(*rx_us - slot) < 0) {
+        h->origin_us -= slot - *rx_us;
+    }
+}
+
+static void anchor(struct ff_handler *h, uint8_t counter, const uint32_t *rx_us)
+{
+    set_origin(h, counter, rx_us, false);
     h->anchored = true;
     h->offset = (uint8_t)(h->cycle - counter);
     h->has_last = true;
@@ -78,7 +112,7 @@ static void anchor(struct ff_handler *h, uint8_t counter)
 }
 
 /* a frame outside the validity window; a steady run of them re-anchors */
-static enum ff_verdict late(struct ff_handler *h, uint8_t counter)
+static enum ff_verdict late(struct ff_handler *h, uint8_t counter, const uint32_t *rx_us)
 {
     uint8_t offset = (uint8_t)(h->cycle - counter);
     bool steady = h->late_run > 0u && offset == h->late_offset
@@ -87,17 +121,17 @@ static enum ff_verdict late(struct ff_handler *h, uint8_t counter)
     h->late_offset = offset;
     h->late_counter = counter;
     if (h->late_run >= REANCHOR_FRAMES) {
-        anchor(h, counter);
+        anchor(h, counter, rx_us);
         return FF_RESYNC;
     }
     return FF_STALE;
 }
 
 /* firmware_bridge.freshness.FrameClock.judge */
-static enum ff_verdict judge(struct ff_handler *h, uint8_t counter)
+static enum ff_verdict judge(struct ff_handler *h, uint8_t counter, const uint32_t *rx_us)
 {
     if (!h->anchored) {
-        anchor(h, counter);
+        anchor(h, counter, rx_us);
         return FF_RESYNC;
     }
     /* order against the last accepted frame while it is itself fresh; once it is
@@ -114,11 +148,12 @@ static enum ff_verdict judge(struct ff_handler *h, uint8_t counter)
     /* age in drive cycles; fresh if age <= max_age_cycles (boundary included) */
     int32_t age = signed_diff((uint32_t)h->cycle - counter - h->offset);
     if (age > (int32_t)h->cfg.max_age_cycles || age < -MAX_EARLY_CYCLES) {
-        return late(h, counter);
+        return late(h, counter, rx_us);
     }
     if (age < 0) { /* the anchor came from a late frame: this one is earlier */
         h->offset = (uint8_t)(h->offset + age);
     }
+    set_origin(h, counter, rx_us, true);
     h->late_run = 0u;
     h->has_last = true;
     h->last_counter = counter;
@@ -126,7 +161,8 @@ static enum ff_verdict judge(struct ff_handler *h, uint8_t counter)
     return FF_ACCEPTED;
 }
 
-static enum ff_verdict classify(struct ff_handler *h, const uint8_t *data, size_t size)
+static enum ff_verdict classify(struct ff_handler *h, const uint8_t *data, size_t size,
+                                const uint32_t *rx_us)
 {
     struct gms_ff_ff_command_t msg;
 
@@ -140,19 +176,35 @@ static enum ff_verdict classify(struct ff_handler *h, const uint8_t *data, size_
     if (!gms_ff_ff_command_current_is_in_range(msg.current)) {
         return FF_CORRUPT;
     }
-    enum ff_verdict verdict = judge(h, msg.counter);
+    enum ff_verdict verdict = judge(h, msg.counter, rx_us);
     if (verdict == FF_ACCEPTED) {
         h->has_fresh = true;
         h->fresh_raw = msg.current;
+        h->fresh_timed = rx_us != NULL && h->has_origin;
+        if (h->fresh_timed) { /* freshness.FrameClock.sent_by */
+            uint32_t early = slot_us(h, msg.counter, *rx_us) - h->cfg.slot_margin_us;
+            h->fresh_sent_us = (int32_t)(early - *rx_us) < 0 ? early : *rx_us;
+        }
     }
     return verdict;
 }
 
-int ff_on_frame(struct ff_handler *h, const uint8_t *data, size_t size)
+static int on_frame(struct ff_handler *h, const uint8_t *data, size_t size,
+                    const uint32_t *rx_us)
 {
-    enum ff_verdict verdict = classify(h, data, size);
+    enum ff_verdict verdict = classify(h, data, size, rx_us);
     h->counts[verdict] = inc_saturating(h->counts[verdict]);
     return (int)verdict;
+}
+
+int ff_on_frame(struct ff_handler *h, const uint8_t *data, size_t size)
+{
+    return on_frame(h, data, size, NULL);
+}
+
+int ff_on_frame_at(struct ff_handler *h, const uint8_t *data, size_t size, uint32_t rx_us)
+{
+    return on_frame(h, data, size, &rx_us);
 }
 
 static int16_t saturate(int16_t value, int16_t limit)
@@ -168,9 +220,24 @@ static int16_t toward_zero(int16_t value, int32_t step)
     return (int16_t)(-value > step ? value + step : 0);
 }
 
-int16_t ff_tick(struct ff_handler *h)
+/* the rule by time (freshness.FrameClock.outlived): too old to apply at now_us? */
+static bool outlived(const struct ff_handler *h, uint32_t now_us)
+{
+    int64_t age_us = (int64_t)(int32_t)(now_us - h->fresh_sent_us);
+    int64_t limit_us = ((int64_t)h->cfg.max_age_cycles + (int64_t)h->cfg.transport_cycles)
+                       * (int64_t)h->cfg.cycle_us;
+    return age_us > limit_us;
+}
+
+static int16_t tick(struct ff_handler *h, const uint32_t *now_us)
 {
     bool was_lost = h->link_lost;
+
+    if (h->has_fresh && h->fresh_timed && now_us != NULL && outlived(h, *now_us)) {
+        h->counts[FF_ACCEPTED]--; /* accepted by the counter, refused by time: stale */
+        h->counts[FF_STALE] = inc_saturating(h->counts[FF_STALE]);
+        h->has_fresh = false;
+    }
 
     if (h->has_fresh) {
         h->cycles_since_fresh = 0;
@@ -188,7 +255,8 @@ int16_t ff_tick(struct ff_handler *h)
         }
     }
     h->has_fresh = false; /* a frame is applied in the cycle after its reception or never
-                           * (the reception-stamp rule of freshness.py, see ff_handler.h) */
+                           * (the reception part of the rule by time, see ff_handler.h) */
+    h->fresh_timed = false;
     h->cycle = (uint8_t)(h->cycle + 1u);
     h->last_age = inc_saturating(h->last_age);
     if (h->link_lost && !was_lost) {
@@ -196,6 +264,10 @@ int16_t ff_tick(struct ff_handler *h)
     }
     return h->output_raw;
 }
+
+int16_t ff_tick(struct ff_handler *h) { return tick(h, NULL); }
+
+int16_t ff_tick_at(struct ff_handler *h, uint32_t now_us) { return tick(h, &now_us); }
 
 uint32_t ff_count(const struct ff_handler *h, int verdict)
 {

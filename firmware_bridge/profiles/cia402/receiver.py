@@ -5,7 +5,12 @@ from __future__ import annotations
 import can
 import canopen
 
-from firmware_bridge.freshness import FrameClock, refuse_outlived, transport_cycles
+from firmware_bridge.freshness import (
+    FrameClock,
+    refuse_outlived,
+    slot_margin_cycles,
+    transport_cycles,
+)
 from firmware_bridge.profiles.cia402.codec import (
     ABORT_ACTIONS,
     ABORT_CONNECTION_OPTION,
@@ -88,6 +93,7 @@ class Cia402Receiver:
     def set_real_time(self, real_time: bool) -> None:
         """Whether the drive runs on its own clock (it applies at its next cycle)."""
         self.clock.transport_cycles = transport_cycles(real_time, self.waits_for_sync)
+        self.clock.slot_margin_cycles = slot_margin_cycles(real_time)
 
     def _close_window(self) -> None:
         """At SYNC: judge the window's RPDOs in arrival order; the newest fresh one wins.
@@ -102,10 +108,10 @@ class Cia402Receiver:
             unpacked = self.codec.unpack_rpdo(data)
             assert unpacked is not None  # checked on arrival
             raw, counter = unpacked
-            verdict = self.clock.judge(counter)
+            verdict = self.clock.judge(counter, received_s)
             self.counts.add(verdict)
             if verdict is Verdict.ACCEPTED:
-                self.fresh = (raw, data, received_s)
+                self.fresh = (raw, data, self.clock.sent_by(counter, received_s))
 
     def _on_nmt(self, command: int, node_id: int) -> None:
         """An orderly stop (pre-operational, stopped) ends PDOs and their supervision."""
