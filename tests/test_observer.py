@@ -134,3 +134,42 @@ def test_physical_extensions_apply_and_measurement_ones_do_not() -> None:
     out = [obs.step(k * speed * SERVO_S, speed) for k in range(40)]
     # Sliding: 10 N of elements + 100 Ns/m * 0.01 m/s of viscous = 11 N -> 0.22 A.
     assert out[-1] == pytest.approx(11.0 / KF)
+
+
+def _dwell_difference(context: dict[str, float] | None) -> float:
+    """Largest extra force of a dwell_time extension over its GMS along slide - hold - slide.
+
+    The hold (0.5 s) dithers by +-0.2 um at 500 Hz (0.6 mm/s peak): never below the
+    runtime's default standstill speed (0.1 mm/s), but within the 1 um rest band the
+    table's context says the fit used."""
+    from gms_comp.runtime.observer import ExtendedGms
+
+    gms = _single_element(10.0)
+    table = dataclasses.replace(
+        _table(gms),
+        extensions=(Extension("dwell_time", {"gamma": 0.5, "tau_s": 0.1, "breakaway_m": 2e-6}),),
+        extension_context=context,
+    )
+    model, plain = ExtendedGms(table, SERVO_S), GmsStream(gms)
+    model.reset()
+    plain.reset()
+    worst, x, k = 0.0, 0.0, 0
+    w = 2 * math.pi * 500.0
+    for phase, steps in (("slide", 200), ("hold", 2000), ("slide", 200)):
+        for _ in range(steps):
+            k += 1
+            if phase == "slide":
+                x, v = x + 1e-2 * SERVO_S, 1e-2
+                x0, t0 = x, k * SERVO_S
+            else:
+                t = k * SERVO_S - t0
+                x, v = x0 + 0.2e-6 * math.sin(w * t), 0.2e-6 * w * math.cos(w * t)
+            worst = max(worst, abs(model.step(x, v) - plain.step(x, v)))
+    return worst
+
+
+def test_extensions_see_the_path_as_the_table_context_says() -> None:
+    """A diagnosed table carries how its fit saw rest; the observer must see it alike."""
+    fitted = {"standstill_speed_m_s": 1e-4, "reversal_deadband_m": 0.0, "rest_band_m": 1e-6}
+    assert _dwell_difference(fitted) > 0.5  # a dwell of 0.5 s: a ramp of newtons
+    assert _dwell_difference(None) == pytest.approx(0.0, abs=1e-9)  # the default: no rest

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -186,3 +187,34 @@ def test_table_command_writes_a_readable_table(
     assert summary["fidelity"]["rms_rel"] == table.fidelity.rms_rel <= 0.02
     assert summary["fidelity"]["max_rel"] >= summary["fidelity"]["rms_rel"]
     assert main(["table", str(tmp_path / "absent.toml"), "-o", str(out)]) == 2
+
+
+CONTEXT = {"standstill_speed_m_s": 2e-4, "reversal_deadband_m": 1e-7, "rest_band_m": 1.5e-7}
+
+
+def test_extension_context_round_trips_and_absent_means_the_defaults(tmp_path: Path) -> None:
+    table = dataclasses.replace(make_table([1e6], [0.1]), extension_context=CONTEXT)
+    write_table(tmp_path / "t.json", table)
+    assert read_table(tmp_path / "t.json").extension_context == CONTEXT
+    doc = good_doc()
+    del doc["extension_context"]  # a table written before the key existed
+    assert read_table(write_doc(tmp_path, doc)).extension_context is None
+
+
+@pytest.mark.parametrize(
+    ("value", "field"),
+    [
+        ([1.0], "extension_context"),
+        ({**CONTEXT, "rest_band_m": -1e-9}, "extension_context.rest_band_m"),
+        ({**CONTEXT, "standstill_speed_m_s": 5.0}, "extension_context.standstill_speed_m_s"),
+        ({**CONTEXT, "band": 1.0}, "extension_context.band"),
+        ({"rest_band_m": 1e-7}, "extension_context.standstill_speed_m_s"),
+    ],
+)
+def test_bad_extension_context_is_refused(tmp_path: Path, value: Any, field: str) -> None:
+    doc = good_doc()
+    doc["extension_context"] = value
+    path = write_doc(tmp_path, doc)
+    with pytest.raises(TableError) as err:
+        read_table(path)
+    assert str(path) in str(err.value) and field in str(err.value)

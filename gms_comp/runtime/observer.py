@@ -67,7 +67,9 @@ class ExtendedGms:
 
     def __init__(self, table: GmsTable, servo_period_s: float) -> None:
         self.gms = GmsStream(table.params)
-        self.extensions = ExtensionStream(physical_extensions(table), servo_period_s)
+        self.extensions = ExtensionStream(
+            physical_extensions(table), servo_period_s, **dict(table.extension_context or {})
+        )
         self.servo_period_s = servo_period_s
         self.reset()
 

@@ -13,8 +13,13 @@ carrying their units::
      "fidelity": {"rms_rel": ..., "max_rel": ...},
      "load_family": null | {"normal_load_N": [...], "stiffness_N_per_m": [[...]],
                             "limit_N": [[...]]},
-     "extensions": [{"effect": "viscous", "parameters": {"name": 1.0}}]}
+     "extensions": [{"effect": "viscous", "parameters": {"name": 1.0}}],
+     "extension_context": null | {"standstill_speed_m_s": ..., "reversal_deadband_m": ...,
+                                  "rest_band_m": ...}}
 
+``extension_context`` is how the extensions were fitted to see the path (when the
+axis is at rest, what counts as a reversal; ``gms_comp.runtime.effects.path``): the
+observer must see it the same way. Null or absent: the runtime's defaults.
 ``limit_N`` are the limits W_i at level s = 1 (at rest). A load family holds
 the elements at several ball loads (one row each) for interpolation.
 """
@@ -77,6 +82,12 @@ MAX_TRANSITION_EXPONENT = 10.0
 MAX_ATTRACTION_RATE_PER_S = 1e9
 #: Model extensions (catalogue effects) of a table.
 MAX_EXTENSIONS = 64
+#: The path settings of a table's extensions and their upper bounds (m/s, m, m).
+EXTENSION_CONTEXT_KEYS = {
+    "standstill_speed_m_s": 1.0,
+    "reversal_deadband_m": 1.0,
+    "rest_band_m": 1.0,
+}
 
 
 @dataclass(frozen=True)
@@ -123,6 +134,7 @@ class GmsTable:
     version: str = __version__
     load_family: LoadFamily | None = None
     extensions: tuple[Extension, ...] = field(default_factory=tuple)
+    extension_context: Mapping[str, float] | None = None  # keys: EXTENSION_CONTEXT_KEYS
 
     @property
     def n_elements(self) -> int:
@@ -166,6 +178,9 @@ def table_to_dict(table: GmsTable) -> dict[str, Any]:
         "extensions": [
             {"effect": e.effect, "parameters": dict(e.parameters)} for e in table.extensions
         ],
+        "extension_context": None
+        if table.extension_context is None
+        else dict(table.extension_context),
     }
 
 
@@ -238,6 +253,7 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
         version=version,
         load_family=r.load_family(doc, n),
         extensions=r.extensions(doc),
+        extension_context=r.extension_context(doc),
     )
 
 
@@ -329,6 +345,23 @@ class _Reader:
                 )
             )
         return LoadFamily(loads, rows[0], rows[1])
+
+    def extension_context(self, doc: Any) -> dict[str, float] | None:
+        context = doc.get("extension_context")
+        if context is None:
+            return None
+        if not isinstance(context, dict):
+            raise self.error("extension_context", "must be a JSON object or null")
+        unknown = sorted(set(context) - set(EXTENSION_CONTEXT_KEYS))
+        if unknown:
+            raise self.error(
+                f"extension_context.{unknown[0]}",
+                f"unknown key (known: {', '.join(EXTENSION_CONTEXT_KEYS)})",
+            )
+        return {
+            name: self.number(context, f"extension_context.{name}", False, hi)
+            for name, hi in EXTENSION_CONTEXT_KEYS.items()
+        }
 
     def extensions(self, doc: Any) -> tuple[Extension, ...]:
         items = doc.get("extensions", [])

@@ -273,6 +273,7 @@ def _table(result: Diagnosis, trace_path: str) -> GmsTable:
         extensions=tuple(
             Extension(d["effect"], d["parameters"]) for d in map(effect_to_dict, result.extensions)
         ),
+        extension_context=result.extension_context or None,
     )
 
 

@@ -39,11 +39,14 @@ class EffectDisturbance:
         return self.link.transfer(cycle, current_A) + extra
 
 
-def _effect_force(s: Scenario, gms: GmsParams, effects: list[fx.Effect]) -> FloatArray:
-    """The physical effects' force along the reference (extended minus plain GMS)."""
+def _effect_force(
+    s: Scenario, gms: GmsParams, effects: list[fx.Effect], context: dict[str, float]
+) -> FloatArray:
+    """The physical effects' force along the reference (extended minus plain GMS), the path
+    seen as the diagnosis saw it (``context``: standstill speed, reversal deadband, rest band)."""
     ref = build_reference(s)
     force = simulate(gms, ref.position_m, ref.velocity_m_s)[0]
-    ctx = fx.Context.of(ref.kinematics, force)
+    ctx = fx.Context.of(ref.kinematics, force, **context)
     return fx.apply_extensions(effects, ctx) - force
 
 
@@ -63,7 +66,7 @@ def closed_loop_gain(
         compensator=dataclasses.replace(s.compensator, friction_level_scale=1.0, table_path=""),
     )
     physical = [e for e in result.extensions if not e.measurement_only]
-    disturbance = _effect_force(s, result.gms, physical)
+    disturbance = _effect_force(s, result.gms, physical, result.extension_context)
     base = result.base_gms
     level = max(float(result.baseline["sliding_force_N"]), 1e-12)
     tables = {
@@ -73,6 +76,7 @@ def closed_loop_gain(
         "extended": GmsTable(
             result.gms, "diagnosis extended", "", Fidelity(result.extended_rms_N / level, np.nan),
             extensions=tuple(Extension(e.name, e.parameters()) for e in physical),
+            extension_context=result.extension_context or None,
         ),
     }  # fmt: skip
     kf = s.plant.force_constant_N_per_A

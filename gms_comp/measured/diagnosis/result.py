@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from gms_comp.arrays import FloatArray
@@ -36,6 +36,8 @@ class Diagnosis:
     tried: list[dict[str, Any]]  # the best trial of every effect in the last round
     series: dict[str, FloatArray]  # for the report's plots
     seconds: float
+    # how the extensions saw the path (rest, reversals): travels with them into the table
+    extension_context: dict[str, float] = field(default_factory=dict)
 
     @property
     def noise_rms_N(self) -> float:

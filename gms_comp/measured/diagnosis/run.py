@@ -121,4 +121,9 @@ def _diagnose(
         tried=describe_trials(selection.last_round, baseline.heldout_rms_N),
         series=series,
         seconds=time.perf_counter() - start,
+        extension_context={
+            "standstill_speed_m_s": prepared.standstill_speed_m_s,
+            "reversal_deadband_m": prepared.reversal_deadband_m,
+            "rest_band_m": prepared.rest_band_m,
+        },
     )
