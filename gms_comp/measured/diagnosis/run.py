@@ -35,6 +35,7 @@ from gms_comp.measured.diagnosis.result import Diagnosis, verdict
 from gms_comp.measured.diagnosis.selection import describe_trials, select
 from gms_comp.measured.diagnosis.structure import residual_structure
 from gms_comp.measured.traces import ForceKind, Trace
+from gms_comp.tables.table import EXTENSION_CONTEXT_KEYS
 
 __all__ = ["Diagnosis", "DiagnosisConfig", "diagnose", "load_diagnosis_config"]
 
@@ -121,9 +122,6 @@ def _diagnose(
         tried=describe_trials(selection.last_round, baseline.heldout_rms_N),
         series=series,
         seconds=time.perf_counter() - start,
-        extension_context={
-            "standstill_speed_m_s": prepared.standstill_speed_m_s,
-            "reversal_deadband_m": prepared.reversal_deadband_m,
-            "rest_band_m": prepared.rest_band_m,
-        },
+        # the table's keys are Prepared's fields of the same names
+        extension_context={key: getattr(prepared, key) for key in EXTENSION_CONTEXT_KEYS},
     )
