@@ -56,6 +56,14 @@ TRANSITION_FRACTIONS = (1 / 5000, 1 / 10)
 TRANSITION_POINTS = 4
 REFINE_ROUNDS = 12
 REFINE_STEPS = ((0.1, 2.0), (0.05, 1.4), (0.02, 1.15))  # C_v +-, v_t x/ (shrinking)
+# The element grid in two passes: COARSE_ELEMENTS over the whole range of break-aways
+# (position resolution to a tenth of the stroke) find where the limits are; then the
+# configured number of elements over that range, widened by one coarse spacing either
+# side (a coarse grid's spacing of about 5 leaves the presliding curve of an axis with
+# clustered break-aways 1.5-2 x the noise off below 1 mm/s; the dense one within it).
+# A limit below SUPPORT_SHARE of the sum does not count as where the limits are.
+COARSE_ELEMENTS = 8
+SUPPORT_SHARE = 0.01
 
 
 @dataclass(frozen=True)
@@ -130,9 +138,12 @@ def _fit(
     return designs, theta, train_rms(designs, theta)
 
 
-def fit_free(prepared: Prepared, breakaway_m: FloatArray) -> FreeBasis:
+def fit_free(
+    prepared: Prepared, breakaway_m: FloatArray, start: FreeBasis | None = None
+) -> FreeBasis:
     """The free basis whose slip level and transition velocity fit the training rows
-    best, each trial's limits by non-negative least squares (bounded search).
+    best, each trial's limits by non-negative least squares (bounded search: a grid, or
+    coordinate steps from the slip level and transition velocity of ``start``).
 
     A viscous term (c >= 0) is fitted beside them during the search and then dropped:
     the slip level takes the velocity dependence that saturates, a linear one is left
@@ -147,12 +158,18 @@ def fit_free(prepared: Prepared, breakaway_m: FloatArray) -> FreeBasis:
             cache[key] = _fit(prepared, FreeBasis(breakaway_m, cv, vt), viscous=True)[2]
         return cache[key]
 
-    best = (cost(1.0, vt_range[1]), 1.0, vt_range[1])
-    for cv in SLIP_LEVELS:
-        for vt in np.geomspace(*vt_range, TRANSITION_POINTS):
-            best = min(best, (cost(cv, float(vt)), cv, float(vt)))
+    if start is None:
+        best = (cost(1.0, vt_range[1]), 1.0, vt_range[1])
+        for cv in SLIP_LEVELS:
+            for vt in np.geomspace(*vt_range, TRANSITION_POINTS):
+                best = min(best, (cost(cv, float(vt)), cv, float(vt)))
+        steps = REFINE_STEPS
+    else:
+        best = (cost(start.slip_level, start.transition_velocity_m_s), start.slip_level,
+                start.transition_velocity_m_s)  # fmt: skip
+        steps = REFINE_STEPS[1:]
     rounds = 0
-    for d_cv, f_vt in REFINE_STEPS if best[1] > 1.0 else ():
+    for d_cv, f_vt in steps if best[1] > 1.0 else ():
         while rounds < REFINE_ROUNDS:
             rounds += 1
             start = best
@@ -182,8 +199,7 @@ def fit_baseline(prepared: Prepared, cfg: DiagnosisConfig, table: GmsParams | No
     """The free GMS with its slip level, or the calibrated ``table`` if its held-out RMS
     is within ``cfg.table_margin`` (relative) of the free GMS's; ``info`` holds both RMS
     values and the table's calibrated factors."""
-    grid = breakaway_grid(prepared.main.kin, cfg.n_elements, prepared.position_resolution_m)
-    free = fit_free(prepared, grid)
+    free = _free_basis(prepared, cfg.n_elements)
     designs, theta, _ = _fit(prepared, free)
     free_rms = rms(GramDesign(designs).held_residual(theta))
     info: dict[str, Any] = {"source": "free_nnls", "free_nnls_heldout_rms_N": free_rms}
@@ -203,6 +219,25 @@ def fit_baseline(prepared: Prepared, cfg: DiagnosisConfig, table: GmsParams | No
         if table_rms <= (1.0 + cfg.table_margin) * free_rms:
             basis, theta, info["source"] = calibrated, t_theta, "table"
     return _baseline(prepared, basis, theta, info)
+
+
+def _free_basis(prepared: Prepared, n_elements: int) -> FreeBasis:
+    """The free basis in two passes (``COARSE_ELEMENTS``, then ``n_elements`` where the
+    coarse limits are; one pass if ``n_elements`` is not more than the coarse count)."""
+    kin, resolution = prepared.main.kin, prepared.position_resolution_m
+    coarse = breakaway_grid(kin, min(n_elements, COARSE_ELEMENTS), resolution)
+    free = fit_free(prepared, coarse)
+    if n_elements <= COARSE_ELEMENTS:
+        return free
+    designs, theta, _ = _fit(prepared, free)
+    limits = theta[: coarse.size]
+    where = np.flatnonzero(limits > SUPPORT_SHARE * max(float(np.sum(limits)), 1e-300))
+    if where.size == 0:
+        return free
+    spacing = float(coarse[1] / coarse[0])
+    lo = max(float(coarse[where[0]]) / spacing, float(coarse[0]))
+    hi = min(float(coarse[where[-1]]) * spacing, float(coarse[-1]))
+    return fit_free(prepared, np.geomspace(lo, hi, n_elements), start=free)
 
 
 def _baseline(

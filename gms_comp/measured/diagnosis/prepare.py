@@ -18,6 +18,8 @@ from gms_comp.measured.diagnosis.motion import Kinematics, kinematics
 from gms_comp.measured.traces import ForceKind, Trace
 from gms_comp.validation import InputError
 
+# The benchmark's low-pass for a drive force's kinematics; a friction force's
+# acceleration (an inertia effect's column) is low-passed here too.
 DRIVE_CUTOFF_HZ = 100.0
 # A trace must reverse at least this often, and its moving speeds must spread over at
 # least this ratio (90th over 10th percentile), to separate the effects.
@@ -76,7 +78,7 @@ def prepare(
     """
     drive = force_kind == "drive"
     cutoff = cfg.filter_cutoff_Hz or (DRIVE_CUTOFF_HZ if drive else 0.45 / trace.sample_time_s)
-    kin = kinematics(trace, cutoff)
+    kin = kinematics(trace, cutoff, DRIVE_CUTOFF_HZ)
     resolution = position_resolution(trace.position_m)
     deadband = cfg.reversal_deadband_steps * resolution
     still = cfg.standstill_speed_fraction * float(np.max(np.abs(kin.velocity_m_s)))
@@ -86,7 +88,7 @@ def prepare(
         held = (np.arange(n) * cfg.n_blocks // n) % 3 == 1
         parts: tuple[Part, ...] = (Part(kin, trace.force_N, ~held, held),)
     else:
-        vkin = kinematics(validation, cutoff)
+        vkin = kinematics(validation, cutoff, DRIVE_CUTOFF_HZ)
         check_usable(validation, vkin, deadband, still)
         m = len(validation)
         parts = (

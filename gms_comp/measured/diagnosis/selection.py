@@ -31,7 +31,7 @@ from gms_comp.runtime import effects as fx
 REFINE_STEPS = (1.3, 1.08)
 MAX_PASSES = 4
 # Contiguous chunks of held-out samples for the significance of an improvement.
-SIGNIFICANCE_CHUNKS = 20
+SIGNIFICANCE_CHUNKS = 50
 # An effect acting on less than this share of the held-out samples is judged there.
 LOCAL_SHARE = 0.25
 
@@ -79,14 +79,22 @@ def local_search(
 
 
 def significance(current: FloatArray, new: FloatArray) -> float:
-    """t statistic of the drop in squared residual, over contiguous chunks (residuals
-    are correlated in time, chunks much less so)."""
+    """z statistic of the drop in squared residual, its spread from contiguous chunks.
+
+    With ``d = current - new`` (what the trial changes), the drop is
+    ``sum(current**2 - new**2) = sum(2 new d + d**2)``; where the trial is right, ``new``
+    is the noise and the drop's chance part is ``2 sum(new d)``, whose spread is taken
+    over contiguous chunks (residuals are correlated in time, chunks much less so). Unlike
+    a t test of the chunks' gains, this does not cap an effect that acts in a few chunks
+    only (fast moves, break-aways) at the square root of their number."""
     n = min(SIGNIFICANCE_CHUNKS, current.size // 2)
     if n < 2:
         return 0.0
-    gain = np.array([np.mean(c) for c in np.array_split(current**2 - new**2, n)])
-    spread = float(np.std(gain, ddof=1)) / np.sqrt(gain.size)
-    return float(np.mean(gain)) / spread if spread > 0 else np.inf
+    change = current - new
+    drop = float(np.sum(current**2 - new**2))
+    cross = np.array([np.sum(c) for c in np.array_split(new * change, n)])
+    spread = 2.0 * float(np.sqrt(np.sum(cross**2)))
+    return drop / spread if spread > 0 else (np.inf if drop > 0 else 0.0)
 
 
 def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: float) -> bool:
