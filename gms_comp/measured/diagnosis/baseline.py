@@ -172,10 +172,10 @@ def fit_free(
     for d_cv, f_vt in steps if best[1] > 1.0 else ():
         while rounds < REFINE_ROUNDS:
             rounds += 1
-            start = best
+            before = best
             for cv, vt in _neighbours(best[1], best[2], d_cv, f_vt, vt_range):
                 best = min(best, (cost(cv, vt), cv, vt))
-            if best == start:
+            if best == before:
                 break
     return FreeBasis(breakaway_m, best[1], best[2])
 
@@ -229,7 +229,7 @@ def _free_basis(prepared: Prepared, n_elements: int) -> FreeBasis:
     free = fit_free(prepared, coarse)
     if n_elements <= COARSE_ELEMENTS:
         return free
-    designs, theta, _ = _fit(prepared, free)
+    _, theta, _ = _fit(prepared, free)
     limits = theta[: coarse.size]
     where = np.flatnonzero(limits > SUPPORT_SHARE * max(float(np.sum(limits)), 1e-300))
     if where.size == 0:
