@@ -163,7 +163,7 @@ def fit_free(
         for cv in SLIP_LEVELS:
             for vt in np.geomspace(*vt_range, TRANSITION_POINTS):
                 best = min(best, (cost(cv, float(vt)), cv, float(vt)))
-        steps = REFINE_STEPS
+        steps: tuple[tuple[float, float], ...] = REFINE_STEPS
     else:
         best = (cost(start.slip_level, start.transition_velocity_m_s), start.slip_level,
                 start.transition_velocity_m_s)  # fmt: skip
