@@ -48,12 +48,17 @@ Basis = FreeBasis | TableBasis
 # bounds. The seed's transition from stick to full slip happens well below the sliding
 # speeds of an identification trace: v_t is at most a tenth of the top speed (the
 # level is then within 2 % of C_v at a fifth of it), so that the slip level cannot stand
-# in for a viscous law over the trace's speeds.
+# in for a viscous law over the trace's speeds, and at most MAX_TRANSITION_M_S: the
+# contact goes from stick to full slip at micro-slip speeds (the seed: at the stop; a
+# table's default 1 um/s), so a level that keeps changing above a few mm/s is the
+# catalogue's (stribeck, viscous) - with v_t free up to 10 mm/s, C_v rising over it and a
+# Stribeck fall traded against each other (ratio - 1 off by 50 % on an independent trace).
 SLIP_LEVELS = (1.15, 1.4, 1.9)
 SLIP_LEVEL_RANGE = (1.0, 3.0)
 MIN_TRANSITION_M_S = 1e-7
 TRANSITION_FRACTIONS = (1 / 5000, 1 / 10)
 TRANSITION_POINTS = 4
+MAX_TRANSITION_M_S = 2e-3
 REFINE_ROUNDS = 12
 REFINE_STEPS = ((0.1, 2.0), (0.05, 1.4), (0.02, 1.15))  # C_v +-, v_t x/ (shrinking)
 # The element grid in two passes: COARSE_ELEMENTS over the whole range of break-aways
@@ -181,7 +186,7 @@ def fit_free(
 
 
 def _transition_range(vmax: float) -> tuple[float, float]:
-    hi = max(vmax * TRANSITION_FRACTIONS[1], 10 * MIN_TRANSITION_M_S)
+    hi = max(min(vmax * TRANSITION_FRACTIONS[1], MAX_TRANSITION_M_S), 10 * MIN_TRANSITION_M_S)
     return max(vmax * TRANSITION_FRACTIONS[0], MIN_TRANSITION_M_S), hi
 
 
