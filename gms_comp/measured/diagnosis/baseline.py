@@ -118,25 +118,27 @@ class Baseline:
 
 
 def _designs(
-    prepared: Prepared, basis: Basis, viscous: bool = False
+    prepared: Prepared, basis: Basis, nuisance: bool = False
 ) -> list[tuple[FloatArray, Columns]]:
     out = []
     for p in prepared.parts:
         phi = basis.columns(p.kin)
         cols = [phi, p.kin.acceleration_m_s2[:, None]] if prepared.drive else [phi]
-        if viscous:
-            cols.append(p.kin.velocity_m_s[:, None])
+        lower = [0.0] * (phi.shape[1] + len(cols) - 1)
+        if nuisance:  # c v >= 0 and an offset of either sign
+            cols += [p.kin.velocity_m_s[:, None], np.ones((phi.shape[0], 1))]
+            lower += [0.0, -np.inf]
         values = np.column_stack(cols)
-        out.append((phi, Columns(values, np.zeros(values.shape[1]))))
+        out.append((phi, Columns(values, np.array(lower))))
     return out
 
 
 def _fit(
-    prepared: Prepared, basis: Basis, viscous: bool = False
+    prepared: Prepared, basis: Basis, nuisance: bool = False
 ) -> tuple[list[PartDesign], FloatArray, float]:
     designs = [
         PartDesign(cols, p.force_N, p.train, p.held)
-        for p, (_, cols) in zip(prepared.parts, _designs(prepared, basis, viscous), strict=True)
+        for p, (_, cols) in zip(prepared.parts, _designs(prepared, basis, nuisance), strict=True)
     ]
     gram = GramDesign(designs)
     theta = gram.fit()
@@ -150,9 +152,12 @@ def fit_free(
     best, each trial's limits by non-negative least squares (bounded search: a grid, or
     coordinate steps from the slip level and transition velocity of ``start``).
 
-    A viscous term (c >= 0) is fitted beside them during the search and then dropped:
-    the slip level takes the velocity dependence that saturates, a linear one is left
-    to the catalogue's ``viscous`` (else C_v stands in for part of it)."""
+    A viscous term (c >= 0) and an offset are fitted beside them during the search and
+    then dropped: the slip level takes the velocity dependence that saturates, a linear
+    one is left to the catalogue's ``viscous`` (else C_v stands in for part of it), and
+    an offset (even in the direction of motion, unlike friction) does not bend the slip
+    level either (with a third of the level as offset, C_v came out where a Stribeck
+    fall beside it could not be kept)."""
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in prepared.parts)
     vt_range = _transition_range(vmax)
     cache: dict[tuple[float, float], float] = {}
@@ -160,7 +165,7 @@ def fit_free(
     def cost(cv: float, vt: float) -> float:
         key = (round(cv, 6), round(vt, 12))
         if key not in cache:
-            cache[key] = _fit(prepared, FreeBasis(breakaway_m, cv, vt), viscous=True)[2]
+            cache[key] = _fit(prepared, FreeBasis(breakaway_m, cv, vt), nuisance=True)[2]
         return cache[key]
 
     if start is None:

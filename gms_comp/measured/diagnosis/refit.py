@@ -73,16 +73,17 @@ def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
         slip = refine_slip_level(baseline, lambda p: _train_rms(p, chosen))
         if slip is not None:
             basis, parts = slip, rebased(baseline, slip)
-        for i in range(len(chosen) - 1, 0, -1):
-            others = chosen[:i] + chosen[i + 1 :]
-            trial = Scorer(parts, others)
-            if not admissible(cfg, trial, trial.score(chosen[i]), baseline.sliding_force_N):
-                del chosen[i], history[i]
+        chosen, history = _prune(parts, chosen, history, cfg, baseline.sliding_force_N)
     theta = GramDesign(design(parts, chosen)).fit()
     for _ in range(JOINT_REFITS if chosen else 0):
         parts = refit_gms_force(parts, theta)
         chosen = _refine_shapes(parts, chosen, baseline.presliding_m)
         theta = GramDesign(design(parts, chosen)).fit()
+    if len(chosen) > 1:
+        order, history = _rank(parts, chosen, theta)
+        if order != chosen:
+            chosen = order
+            theta = GramDesign(design(parts, chosen)).fit()
     n = baseline.n_gms
     base_width = parts[0].base.values.shape[1]
     w = widths(parts, chosen)
@@ -102,6 +103,56 @@ def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
         ]
     )
     return Extended(baseline, ranked, gms, tuple(extensions), predictions, rms(held), held)
+
+
+def _prune(
+    parts: Sequence[FittedPart], chosen: list[Option], history: list[float],
+    cfg: DiagnosisConfig, level_N: float,
+) -> tuple[list[Option], list[float]]:  # fmt: skip
+    """Drop a kept effect that is no longer admissible on top of all the others (it
+    stood in for a slip level the blind baseline had not found, or for an effect kept
+    after it: a ripple whose wavelength follows a drift along a trajectory), the first
+    kept included."""
+    if len(chosen) < 2:
+        return chosen, history
+    kept = list(chosen)
+    for opt in list(reversed(chosen)):
+        others = [o for o in kept if o is not opt]
+        trial = Scorer(parts, others)
+        if others and not admissible(cfg, trial, trial.score(opt), level_N):
+            kept = others
+    return kept, [h for o, h in zip(chosen, history, strict=True) if o in kept]
+
+
+def _rank(
+    parts: Sequence[FittedPart], chosen: list[Option], theta: FloatArray
+) -> tuple[list[Option], list[float]]:
+    """The kept effects, the largest force first (the RMS along the trace of what each
+    adds to the jointly fitted model; the selection takes first what lowers the
+    held-out RMS most, and a level effect such as a drift is partly carried by the GMS
+    until it is kept), each with the held-out RMS once it is added in that order."""
+    full = design(parts, chosen)[0].columns.values @ theta
+    size = {}
+    start = parts[0].base.values.shape[1]
+    for opt, width in zip(chosen, widths(parts, chosen), strict=True):
+        if opt.is_filter:
+            rest = [o for o in chosen if o is not opt]
+            size[id(opt)] = rms(full - design(parts, rest)[0].columns.values @ theta)
+        else:
+            size[id(opt)] = rms(full - _without(parts, chosen, opt, theta, start, width))
+        start += width
+    ranked = sorted(chosen, key=lambda o: size[id(o)], reverse=True)
+    return ranked, [Scorer(parts, ranked[: i + 1]).heldout_rms_N for i in range(len(ranked))]
+
+
+def _without(
+    parts: Sequence[FittedPart], chosen: list[Option], opt: Option, theta: FloatArray,
+    start: int, width: int,
+) -> FloatArray:  # fmt: skip
+    """The model force on the main part with ``opt``'s coefficients set to zero."""
+    zeroed = theta.copy()
+    zeroed[start : start + width] = 0.0
+    return design(parts, chosen)[0].columns.values @ zeroed
 
 
 def _train_rms(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> float:

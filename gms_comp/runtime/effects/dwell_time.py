@@ -52,7 +52,12 @@ class DwellTime(Effect):
         gain = np.log1p(ctx.dwell_s / max(shape["tau_s"], TAU_RANGE_S[0]))
         s = ctx.distance_since_start_m
         decay = np.zeros_like(s)
-        raised = (gain > 0.0) & (ctx.resting == 0.0) & (s < MAX_DECAYS * w * gain)
+        raised = (
+            (gain > 0.0)
+            & (ctx.resting == 0.0)
+            & (s < MAX_DECAYS * w * gain)
+            & (ctx.gms_force_N * ctx.direction > 0.0)
+        )
         decay[raised] = np.exp(-s[raised] / (w * gain[raised]))
         return (ctx.gms_force_N * (s / w) * decay)[:, None]
 
