@@ -43,11 +43,10 @@ def _direction_step(state: FloatArray, x: float, v: float, deadband: float) -> N
     (so encoder steps and filter ringing at a standstill make no reversals)."""
     d = state[_DIR]
     if d == 0.0:
-        if v != 0.0:  # the first motion sets the direction; distances count from here
+        if v != 0.0:  # the first motion sets the direction (it is not a reversal)
             state[_DIR] = 1.0 if v > 0.0 else -1.0
             state[_EXTREME] = x
             state[_CUM_AT_EXTREME] = state[_CUM]
-            state[_CUM_AT_REVERSAL] = state[_CUM]
     elif (x - state[_EXTREME]) * d >= 0.0:
         state[_EXTREME] = x
         state[_CUM_AT_EXTREME] = state[_CUM]
@@ -140,6 +139,11 @@ def fresh_path_state() -> FloatArray:
     """The path state before the first sample."""
     state = np.zeros(_N_STATE)
     state[_FIRST] = 1.0
+    # the last reversal before the trajectory is unknown: until the first one, the
+    # distance since a reversal is infinite (a transient of it has decayed; counting it
+    # from the first motion put a full reversal transient on every trace's first stroke:
+    # on an independent trace, A came out 0.26 for 1.0)
+    state[_CUM_AT_REVERSAL] = -np.inf
     return state
 
 
