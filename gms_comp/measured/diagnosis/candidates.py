@@ -132,17 +132,6 @@ class Scorer:
         )
         return Trial(opt, rms(held), theta, held, support)
 
-    def quick(self, opt: Option) -> float:
-        """Held-out RMS of the filter option ``opt`` applied to the current model force,
-        without a refit: one column filtered instead of every column of the design (a
-        screen of the filter grid; the finalists are scored in full)."""
-        assert opt.is_filter
-        held = []
-        for i, fp in enumerate(self.parts):
-            force = opt.filter_effect().filter_columns(self.model(i), fp.ctx.sample_time_s)
-            held.append((fp.part.force_N - force)[fp.part.held])
-        return rms(np.concatenate(held))
-
     def change(self, trial: Trial) -> FloatArray:
         """How much ``trial`` changes the model force on the main part."""
         if trial.option.is_filter:

@@ -32,8 +32,6 @@ REFINE_STEPS = (1.3, 1.08)
 MAX_PASSES = 4
 # Contiguous chunks of held-out samples for the significance of an improvement.
 SIGNIFICANCE_CHUNKS = 50
-# Filter options scored in full after the quick screen (:func:`_screened`).
-FILTER_FINALISTS = 3
 # An effect acting on less than this share of the held-out samples is judged there.
 LOCAL_SHARE = 0.25
 
@@ -137,14 +135,12 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
         for i, effect in enumerate(pool):
             if progress:
                 progress(f"round {len(chosen) + 1}: {effect.name} ({i + 1}/{len(pool)})")
-            opts = options(effect, parts[0], residual, baseline.presliding_m)
-            if issubclass(effect, fx.FilterEffect):
-                opts = _screened(scorer, opts, baseline.presliding_m)
-            trials = [scorer.score(o) for o in opts]
+            trials = [scorer.score(o) for o in options(effect, parts[0], residual,
+                                                      baseline.presliding_m)]  # fmt: skip
             if not trials:
                 continue
             best = min(trials, key=lambda t: t.heldout_rms_N)
-            if best.heldout_rms_N < scorer.heldout_rms_N and not best.option.is_filter:
+            if best.heldout_rms_N < scorer.heldout_rms_N:
                 best = _refine(scorer, best, baseline.presliding_m)
             last.append(best)
         kept = [t for t in last if admissible(cfg, scorer, t, level)]
@@ -155,19 +151,6 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
         history.append(take.heldout_rms_N)
         pool.remove(take.option.effect)
     return Selection(baseline, tuple(chosen), tuple(history), tuple(last))
-
-
-def _screened(scorer: Scorer, opts: list[Option], presliding_m: float) -> list[Option]:
-    """A filter effect's finalists: the ``FILTER_FINALISTS`` best of its grid and the
-    local search's result from the best, all by :meth:`Scorer.quick` (refiltering every
-    design column for each of some 70 trials took two thirds of a diagnosis)."""
-    if not opts:
-        return opts
-    quick = {id(o): scorer.quick(o) for o in opts}
-    ranked = sorted(opts, key=lambda o: quick[id(o)])[:FILTER_FINALISTS]
-    bounds = ranked[0].effect.shape_bounds(scorer.parts[0].ctx, presliding_m)
-    found, _ = local_search(ranked[0], scorer.quick, quick[id(ranked[0])], bounds)
-    return ranked if found is ranked[0] else [found, *ranked]
 
 
 def _refine(scorer: Scorer, best: Trial, presliding_m: float) -> Trial:
