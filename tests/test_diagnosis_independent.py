@@ -32,9 +32,6 @@ KNOWN_MISSES = {
     "the noise; with the exact truth as a column the break-aways' local RMS falls 22 % "
     "(z 6.7), with the catalogue's ramp 7 %: the ramp ignores the climb from the stick "
     "to the sliding level (C_v) that precedes a dwell's extra force at a fast start",
-    ("unknown_bumps", 101): "named none: the two 0.45 mm bumps lie in 8 % of the held-out "
-    "samples (a third of the trace is held out); there the residual is 5 x the noise, "
-    "over all held-out samples its position structure is 1.1-1.3 x (threshold 1.5)",
 }
 KNOWN_PARAMETER_MISSES: dict[tuple[str, int], str] = {}
 

@@ -190,8 +190,8 @@ def fit_free(
     return FreeBasis(breakaway_m, best[1], best[2])
 
 
-def _transition_range(vmax: float) -> tuple[float, float]:
-    hi = max(min(vmax * TRANSITION_FRACTIONS[1], MAX_TRANSITION_M_S), 10 * MIN_TRANSITION_M_S)
+def _transition_range(vmax: float, cap: float = MAX_TRANSITION_M_S) -> tuple[float, float]:
+    hi = max(min(vmax * TRANSITION_FRACTIONS[1], cap), 10 * MIN_TRANSITION_M_S)
     return max(vmax * TRANSITION_FRACTIONS[0], MIN_TRANSITION_M_S), hi
 
 
@@ -317,7 +317,10 @@ def refine_slip_level(
     if not isinstance(basis, FreeBasis):
         return None
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in baseline.prepared.parts)
-    vt_range = _transition_range(vmax)
+    # with the kept effects present the cap is lifted (a tenth of the top speed): on the
+    # EMPS ball screw the extended model's level keeps rising above 2 mm/s (capped, the
+    # benchmark's training error went from 2.48 % to 2.69 %)
+    vt_range = _transition_range(vmax, np.inf)
     best = (cost(baseline.parts), basis.slip_level, basis.transition_velocity_m_s)
     rounds = 0
     for d_cv, f_vt in REFINE_STEPS:

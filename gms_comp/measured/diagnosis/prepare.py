@@ -81,7 +81,8 @@ def prepare(
     drive = force_kind == "drive"
     cutoff = cfg.filter_cutoff_Hz or (DRIVE_CUTOFF_HZ if drive else 0.45 / trace.sample_time_s)
     resolution = position_resolution(trace.position_m)
-    accel_cutoff = acceleration_cutoff(trace, resolution)
+    # a drive force's kinematics are the benchmark's (one 100 Hz low-pass for all)
+    accel_cutoff = DRIVE_CUTOFF_HZ if drive else acceleration_cutoff(trace, resolution)
     kin = kinematics(trace, cutoff, accel_cutoff)
     deadband = cfg.reversal_deadband_steps * resolution
     still = cfg.standstill_speed_fraction * float(np.max(np.abs(kin.velocity_m_s)))

@@ -108,10 +108,13 @@ class FilterEffect(Effect):
         """Filter along axis 0, starting at rest at the first sample's value."""
         b, a = self.filter(sample_time_s)
         zi = signal.lfilter_zi(b, a)
-        x0 = x[0]
-        zi_full = np.multiply.outer(zi, x0) if np.ndim(x0) else zi * x0
-        y, _ = signal.lfilter(b, a, x, axis=0, zi=zi_full)
-        return np.asarray(y)
+        if np.ndim(x) == 1:
+            return np.asarray(signal.lfilter(b, a, x, zi=zi * x[0])[0])
+        # each column as a contiguous row: the same numbers 1.5-3 x faster than along
+        # axis 0 (a filter trial refilters every column of a tall design)
+        rows = np.ascontiguousarray(np.asarray(x).T)
+        y, _ = signal.lfilter(b, a, rows, axis=-1, zi=np.multiply.outer(rows[:, 0], zi))
+        return np.asarray(y).T
 
 
 def top_speed(ctx: Context) -> float:

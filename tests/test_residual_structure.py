@@ -1,0 +1,43 @@
+"""The residual-structure test behind ``unknown``: a local friction spot is found where it
+acts, white noise and smooth misfits are not (hand-made residuals, known answers)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gms_comp.measured.diagnosis import structure as st
+
+NOISE = 0.1
+
+
+def _stroke(n: int = 40_000) -> tuple[np.ndarray, np.ndarray]:
+    """Back-and-forth over 10 mm: positions and directions."""
+    x = 5e-3 * (1 - np.cos(np.linspace(0, 8 * np.pi, n)))
+    d = np.sign(np.gradient(x))
+    return x, d
+
+
+def test_a_bump_on_a_few_samples_is_a_spot_with_its_place_and_size() -> None:
+    rng = np.random.default_rng(1)
+    x, d = _stroke()
+    r = rng.normal(0, NOISE, x.size)
+    bump = (np.abs(x - 3.1e-3) < 0.1e-3) & (d > 0)  # 0.2 mm, forward only
+    r[bump] += 0.8
+    assert np.count_nonzero(bump) < 0.02 * x.size  # a small share of the samples
+    spot = st._spot(r, x, d, NOISE)
+    assert spot is not None
+    # the bin holding most of the bump (0.25 mm wide): most of its samples carry 0.8 N
+    assert 0.5 <= spot.rms_N <= 0.8
+    assert "near x = 3.125 mm" in spot.where  # the bin [3.0, 3.25) mm holds the bump
+    assert "forward" in spot.where
+
+
+def test_white_noise_and_a_smooth_level_error_are_no_spot_above_the_threshold() -> None:
+    rng = np.random.default_rng(2)
+    x, d = _stroke()
+    r = rng.normal(0, NOISE, x.size)
+    assert st._spot(r, x, d, NOISE) is None  # no bin mean 8 standard errors from zero
+    smooth = r + 0.02 * d  # a level error of a fifth of the noise everywhere
+    spot = st._spot(smooth, x, d, NOISE)
+    size = 0.0 if spot is None else spot.rms_N
+    assert size < st.SPOT_RATIO * NOISE  # far below a spot's threshold
