@@ -207,9 +207,9 @@ def _reversal_step(
     path[1] = q
     d = path[3]
     if d == 0.0:
-        if v != 0.0:
+        if v != 0.0:  # the first motion is no reversal: until one, no transient
             path[3] = 1.0 if v > 0.0 else -1.0
-            path[4], path[5], path[6] = q, path[2], path[2]
+            path[4], path[5], path[6] = q, path[2], -np.inf
     elif (q - path[4]) * d >= 0.0:
         path[4], path[5] = q, path[2]
     elif (path[4] - q) * d > deadband:
