@@ -1,9 +1,10 @@
 """Benchmark the diagnosis blind, on traces from the independent generator (tests/indepgen.py).
 
-Every case over N seeds (101, 102, ... or from ``--first-seed``): generate, write the canonical CSV, run
-``python -m gms_comp diagnose CSV --json`` and time the call (wall clock). Prints a markdown
-table (hit rate per case, false positives on ``none``, unknown rate, pair-order rate,
-parameter errors, median and worst time), or with ``--json`` the per-trace rows as JSON;
+Every case over N seeds (101, 102, ..., or from ``--first-seed``): generate, write the
+canonical CSV, run ``python -m gms_comp diagnose CSV --json`` and time the call (wall
+clock). Prints a markdown table (hit rate per case, false positives on ``none``, unknown
+rate, pair-order rate, parameter errors, median and worst time), or with ``--json`` the
+per-trace rows as JSON;
 ``-o FILE`` writes the JSON rows (after every trace); ``--rows FILE...`` prints the table of
 saved rows without running anything.
 
