@@ -43,7 +43,9 @@ from gms_comp.runtime import effects as fx
 
 Basis = FreeBasis | TableBasis
 
-# The slip level's search: C_v on this grid (1 first: no velocity dependence), v_t
+# The slip level's search: C_v on this grid (1 first: no velocity dependence; 1.05, as a
+# C_v of 1.047 fell between 1 and 1.15 and, with no steps from 1, was fitted as 1 and
+# left a velocity-dependent residual that was named stribeck on an effect-free trace), v_t
 # on a log grid, then at most REFINE_ROUNDS rounds of coordinate steps inside the
 # bounds. The seed's transition from stick to full slip happens well below the sliding
 # speeds of an identification trace: v_t is at most a tenth of the top speed (the
@@ -53,7 +55,7 @@ Basis = FreeBasis | TableBasis
 # table's default 1 um/s), so a level that keeps changing above a few mm/s is the
 # catalogue's (stribeck, viscous) - with v_t free up to 10 mm/s, C_v rising over it and a
 # Stribeck fall traded against each other (ratio - 1 off by 50 % on an independent trace).
-SLIP_LEVELS = (1.15, 1.4, 1.9)
+SLIP_LEVELS = (1.05, 1.15, 1.4, 1.9)
 SLIP_LEVEL_RANGE = (1.0, 3.0)
 MIN_TRANSITION_M_S = 1e-7
 TRANSITION_FRACTIONS = (1 / 5000, 1 / 10)
@@ -179,7 +181,7 @@ def fit_free(
                 start.transition_velocity_m_s)  # fmt: skip
         steps = REFINE_STEPS[1:]
     rounds = 0
-    for d_cv, f_vt in steps if best[1] > 1.0 else ():
+    for d_cv, f_vt in steps:
         while rounds < REFINE_ROUNDS:
             rounds += 1
             before = best
