@@ -118,8 +118,10 @@ def _prune(
     kept = list(chosen)
     for opt in list(reversed(chosen)):
         others = [o for o in kept if o is not opt]
+        if not others:
+            continue
         trial = Scorer(parts, others)
-        if others and not admissible(cfg, trial, trial.score(opt), level_N):
+        if not admissible(cfg, trial, trial.score(opt), level_N):
             kept = others
     return kept, [h for o, h in zip(chosen, history, strict=True) if o in kept]
 
@@ -131,28 +133,19 @@ def _rank(
     adds to the jointly fitted model; the selection takes first what lowers the
     held-out RMS most, and a level effect such as a drift is partly carried by the GMS
     until it is kept), each with the held-out RMS once it is added in that order."""
-    full = design(parts, chosen)[0].columns.values @ theta
+    values = design(parts, chosen)[0].columns.values
+    full = values @ theta
     size = {}
     start = parts[0].base.values.shape[1]
     for opt, width in zip(chosen, widths(parts, chosen), strict=True):
-        if opt.is_filter:
+        if opt.is_filter:  # the model without the filter: the same coefficients unfiltered
             rest = [o for o in chosen if o is not opt]
             size[id(opt)] = rms(full - design(parts, rest)[0].columns.values @ theta)
-        else:
-            size[id(opt)] = rms(full - _without(parts, chosen, opt, theta, start, width))
+        else:  # an additive effect's own columns times its coefficients
+            size[id(opt)] = rms(values[:, start : start + width] @ theta[start : start + width])
         start += width
     ranked = sorted(chosen, key=lambda o: size[id(o)], reverse=True)
     return ranked, [Scorer(parts, ranked[: i + 1]).heldout_rms_N for i in range(len(ranked))]
-
-
-def _without(
-    parts: Sequence[FittedPart], chosen: list[Option], opt: Option, theta: FloatArray,
-    start: int, width: int,
-) -> FloatArray:  # fmt: skip
-    """The model force on the main part with ``opt``'s coefficients set to zero."""
-    zeroed = theta.copy()
-    zeroed[start : start + width] = 0.0
-    return design(parts, chosen)[0].columns.values @ zeroed
 
 
 def _train_rms(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> float:
