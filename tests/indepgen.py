@@ -160,7 +160,10 @@ def draw_effect(name: str, size: float, truth: Truth, rng: np.random.Generator) 
     elif name == "stribeck":
         p = {"ratio": 1.0 + 1.3 * size, "v_s_m_per_s": rng.uniform(2.0, 10.0) * 1e-3}
     elif name == "dwell_time":
-        p = {"gamma": rng.uniform(0.05, 0.1), "tau_s": _loguniform(rng, 0.05, 0.5)}
+        # sized at the trace's median standstill: the break-away after it is ``size`` above
+        # the limits (a gamma drawn alone, 0.05-0.1, gave peaks of 1-11 % of the level)
+        tau = _loguniform(rng, 0.05, 0.5)
+        p = {"gamma": size / np.log1p(_median_standstill(truth) / tau), "tau_s": tau}
     elif name == "position_ripple":
         wavelength = _loguniform(rng, 0.5e-3, 8e-3)
         p = {
@@ -196,6 +199,17 @@ def draw_effect(name: str, size: float, truth: Truth, rng: np.random.Generator) 
     else:
         raise ValueError(f"unknown effect {name!r}")
     return name, p
+
+
+def _median_standstill(truth: Truth) -> float:
+    """Median length (s) of the trace's standstills between two motions."""
+    moving = truth.velocity_m_s != 0.0
+    starts = np.flatnonzero(moving[1:] & ~moving[:-1]) + 1
+    stops = np.flatnonzero(~moving[1:] & moving[:-1]) + 1
+    dwells = [
+        truth.time_s[a] - truth.time_s[stops[stops < a][-1]] for a in starts if (stops < a).any()
+    ]
+    return float(np.median(dwells)) if dwells else 0.1
 
 
 def _often_crossed(truth: Truth) -> np.ndarray:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from gms_comp.gms import GmsParams, simulate
 from gms_comp.runtime import effects as fx
 
 
@@ -82,10 +84,15 @@ def test_slow_break_away_is_dated_by_the_rest_band_not_the_speed() -> None:
     assert by_band.resting[first_step - 1] == 1.0 and by_band.resting[first_step] == 0.0
     assert by_band.dwell_s[late] == pytest.approx(0.4 + (first_step - 400) * dt, abs=1.5 * dt)
     assert by_band.distance_since_start_m[late] == pytest.approx(x[late] - x[0], abs=step)
-    # the break-away window of a dwell gain follows the band's start
-    effect = fx.DwellTime(0.1, 0.05, 1e-6)
-    assert np.all(effect.basis(by_speed, effect.shape())[first_step:late] == 0.0)
-    assert np.count_nonzero(effect.basis(by_band, effect.shape())[first_step:late]) > 50
+    # the break-away window of a dwell gain follows the band's start: an element of 2 um
+    # raised by 1 + 0.3 ln(1 + 0.4 / 0.05) = 1.66 stretches on from 2 to 3.3 um (the
+    # 63rd to the 81st ms after the start)
+    effect = fx.DwellTime(0.3, 0.05, 0.3)
+    element = GmsParams(np.array([1.0 / 2e-6]), np.array([1.0]))
+    speed_ctx = dataclasses.replace(by_speed, gms=element)
+    band_ctx = dataclasses.replace(by_band, gms=element)
+    assert np.all(effect.basis(speed_ctx, effect.shape())[first_step:late] == 0.0)
+    assert np.count_nonzero(effect.basis(band_ctx, effect.shape())[first_step:late]) > 10
 
 
 def test_settling_after_a_stop_is_not_a_start() -> None:
@@ -160,7 +167,7 @@ def test_sensor_lowpass_keeps_dc_and_lags() -> None:
 
 
 def test_dict_round_trip_and_bad_entries() -> None:
-    for e in (fx.Viscous(12.0), fx.SensorLowpass(30.0, 2), fx.DwellTime(0.1, 1.0, 2e-5)):
+    for e in (fx.Viscous(12.0), fx.SensorLowpass(30.0, 2), fx.DwellTime(0.1, 1.0, 0.12)):
         assert fx.effect_from_dict(fx.effect_to_dict(e)) == e
     with pytest.raises(ValueError, match="unknown effect 'magic'"):
         fx.effect_from_dict({"effect": "magic", "parameters": {}})
@@ -186,10 +193,12 @@ def test_drive_lag_is_a_first_order_lead() -> None:
     np.testing.assert_allclose(out[10:], 2.0 * t[10:] + 2.0 * 5e-4, atol=1e-12)
 
 
+# the GMS a dwell gain raises (its force is not the context's here: the effect runs its own)
+ELEMENTS = GmsParams(np.array([2e5, 1e6]), np.array([1.0, 4.0]), slip_level=1.2)
 ALL = [
     fx.Viscous(30.0),
     fx.Stribeck(1.3, 2e-3),
-    fx.DwellTime(0.2, 0.05, 5e-5),
+    fx.DwellTime(0.2, 0.05, 0.25),
     fx.PositionRipple(0.5, 2.5e-4, 1.0),
     fx.Offset(-0.4),
     fx.ReversalTransient(0.8, 3e-5),
@@ -209,9 +218,9 @@ def test_streaming_equals_batch(seed: int) -> None:
     x = np.cumsum(v) * 1e-3
     a = np.gradient(v, t)
     f = np.tanh(x / 1e-5) * 5.0
-    ctx = fx.Context.along(t, x, v, a, f)
+    ctx = dataclasses.replace(fx.Context.along(t, x, v, a, f), gms=ELEMENTS)
     batch = fx.apply_extensions(ALL, ctx)
-    stream = fx.ExtensionStream(ALL, 1e-3)
+    stream = fx.ExtensionStream(ALL, 1e-3, gms=ELEMENTS)
     out = np.array([stream.step(t[i], x[i], v[i], a[i], f[i]) for i in range(n)])
     np.testing.assert_allclose(out, batch, rtol=1e-9, atol=1e-9)
 
@@ -220,3 +229,42 @@ def test_measurement_effects_are_flagged() -> None:
     # the compensator skips exactly the measurement chain (filters and the inertial force)
     flagged = {name for name, cls in fx.CATALOGUE.items() if cls.measurement_only}
     assert flagged == {"sensor_lowpass", "drive_lag", "inertia"}
+
+
+def _slide_hold_slide(back: bool) -> tuple[np.ndarray, ...]:
+    """1 ms samples: 30 um forward at 0.3 mm/s, 0.5 s at rest, then 30 um on (or back)."""
+    v_move = np.full(100, 3e-4)
+    v = np.concatenate([v_move, np.zeros(500), -v_move if back else v_move, np.zeros(50)])
+    x = np.cumsum(v) * 1e-3
+    t = np.arange(x.size) * 1e-3
+    return t, x, v
+
+
+@pytest.mark.parametrize("back", [False, True])
+def test_dwell_gain_raises_one_element_by_gamma_log_of_the_dwell(back: bool) -> None:
+    """One element of limit W = 2 N and break-away 4 um, C_v = 1: after 0.5 s at rest its
+    limit is g W, g = 1 + gamma ln(1 + 0.5 / tau). Going on, it rests at W and stretches
+    to g W before it slips (the plain one slides on at W): the extra force rises to
+    (g - 1) W; going back, the plain one slips at -W after 8 um, the raised one at -g W
+    after (1 + g) 4 um: the extra falls to -(g - 1) W. Then they are one element again."""
+    t, x, v = _slide_hold_slide(back)
+    w, k = 2.0, 2.0 / 4e-6
+    gms = GmsParams(np.array([k]), np.array([w]))
+    force = simulate(gms, x, v)[0]
+    ctx = dataclasses.replace(fx.Context.along(t, x, v, 0 * t, force), gms=gms)
+    gamma, tau = 0.2, 0.1
+    g = 1.0 + gamma * math.log1p(0.5 / tau)
+    extra = fx.DwellTime(gamma, tau, gamma).apply(ctx, force) - force
+    assert ctx.dwell_s[-1] == pytest.approx(0.5, abs=1e-9)
+    restart = 600
+    assert np.all(extra[:restart] == 0.0)  # nothing before the first standstill ends
+    sign = -1.0 if back else 1.0
+    step = k * 3e-7  # the force of one sample's travel
+    peak = float(np.max(sign * extra))
+    assert (g - 1.0) * w - step <= peak <= (g - 1.0) * w + 1e-9
+    # where: going on, within the first (g - 1) 4 um; going back, after 8 um
+    where = (int(np.argmax(sign * extra)) - restart + 1) * 3e-7
+    expected = (g - 1.0) * 4e-6 if not back else (1.0 + g) * 4e-6
+    assert where == pytest.approx(expected, abs=3e-7)
+    # slipped: the plain element again
+    np.testing.assert_allclose(extra[restart + round(expected / 3e-7) + 2 :], 0.0, atol=1e-9)

@@ -147,7 +147,7 @@ def _dwell_difference(context: dict[str, float] | None) -> float:
     gms = _single_element(10.0)
     table = dataclasses.replace(
         _table(gms),
-        extensions=(Extension("dwell_time", {"gamma": 0.5, "tau_s": 0.1, "breakaway_m": 2e-6}),),
+        extensions=(Extension("dwell_time", {"gamma": 0.5, "tau_s": 0.1, "reach": 0.5}),),
         extension_context=context,
     )
     model, plain = ExtendedGms(table, SERVO_S), GmsStream(gms)
@@ -171,5 +171,5 @@ def _dwell_difference(context: dict[str, float] | None) -> float:
 def test_extensions_see_the_path_as_the_table_context_says() -> None:
     """A diagnosed table carries how its fit saw rest; the observer must see it alike."""
     fitted = {"standstill_speed_m_s": 1e-4, "reversal_deadband_m": 0.0, "rest_band_m": 1e-6}
-    assert _dwell_difference(fitted) > 0.5  # a dwell of 0.5 s: a ramp of newtons
+    assert _dwell_difference(fitted) > 0.5  # a dwell of 0.5 s: limits 1.9 x 10 N
     assert _dwell_difference(None) == pytest.approx(0.0, abs=1e-9)  # the default: no rest

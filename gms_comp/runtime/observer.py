@@ -32,7 +32,12 @@ import numpy as np
 from gms_comp.arrays import FloatArray
 from gms_comp.config import in_range, non_negative, positive
 from gms_comp.gms import GmsStream
-from gms_comp.runtime.effects import Effect, ExtensionStream, effect_from_dict
+from gms_comp.runtime.effects import (
+    DEFAULT_STANDSTILL_SPEED_M_S,
+    Effect,
+    ExtensionStream,
+    effect_from_dict,
+)
 from gms_comp.tables.table import GmsTable
 
 
@@ -67,9 +72,13 @@ class ExtendedGms:
 
     def __init__(self, table: GmsTable, servo_period_s: float) -> None:
         self.gms = GmsStream(table.params)
+        context = dict(table.extension_context or {})
         self.extensions = ExtensionStream(
-            physical_extensions(table), servo_period_s, **dict(table.extension_context or {})
-        )
+            physical_extensions(table), servo_period_s,
+            context.get("standstill_speed_m_s", DEFAULT_STANDSTILL_SPEED_M_S),
+            context.get("reversal_deadband_m", 0.0), context.get("rest_band_m", 0.0),
+            gms=table.params,
+        )  # fmt: skip
         self.servo_period_s = servo_period_s
         self.reset()
 

@@ -11,6 +11,7 @@ tests of the diagnosis (its blind tests use the independent tests/indepgen.py).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import io
 import json
 import math
@@ -64,7 +65,7 @@ def draw_effect(
     effects: dict[str, fx.Effect] = {
         "viscous": fx.Viscous(u(0.15, 0.4) * level / vmax),
         "stribeck": fx.Stribeck(u(1.3, 1.8), u(0.05, 0.2) * vmax),
-        "dwell_time": fx.DwellTime(u(0.15, 0.3), u(0.01, 0.05), 0.1 * tracegen.TRUTH_PRESLIDING_M),
+        "dwell_time": fx.DwellTime(gain := u(0.15, 0.3), u(0.01, 0.05), gain),
         "position_ripple": fx.PositionRipple(
             u(0.08, 0.2) * level, u(0.5e-3, 3e-3), u(-math.pi, math.pi)
         ),
@@ -96,6 +97,7 @@ def generate(
     ctx = fx.Context.along(
         t, x, v, truth.acceleration_m_s2, truth.gms_force_N, TRUTH_STANDSTILL_SPEED_M_S
     )
+    ctx = dataclasses.replace(ctx, gms=tracegen.TRUTH_GMS)
     force = fx.apply_extensions([] if effect is None else [effect], ctx)
     force, measured_x = tracegen.measure(force, x, truth.sliding_force_N, rng)
     trace = Trace(

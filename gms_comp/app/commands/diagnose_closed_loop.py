@@ -46,7 +46,7 @@ def _effect_force(
     seen as the diagnosis saw it (``context``: standstill speed, reversal deadband, rest band)."""
     ref = build_reference(s)
     force = simulate(gms, ref.position_m, ref.velocity_m_s)[0]
-    ctx = fx.Context.of(ref.kinematics, force, **context)
+    ctx = dataclasses.replace(fx.Context.of(ref.kinematics, force, **context), gms=gms)
     return fx.apply_extensions(effects, ctx) - force
 
 

@@ -264,6 +264,7 @@ def _baseline(
             p.kin, phi @ theta[:n_gms], prepared.standstill_speed_m_s,
             prepared.reversal_deadband_m, prepared.rest_band_m,
         )  # fmt: skip
+        ctx = dataclasses.replace(ctx, gms=gms)
         parts.append(FittedPart(p, phi, cols, ctx))
     predictions = tuple(fp.base.values @ theta for fp in parts)
     held = np.concatenate(
@@ -286,11 +287,17 @@ def _baseline(
     )
 
 
-def refit_gms_force(parts: tuple[FittedPart, ...], theta: FloatArray) -> tuple[FittedPart, ...]:
-    """The parts with their path context's GMS force from the coefficients ``theta``."""
+def refit_gms_force(
+    parts: tuple[FittedPart, ...], theta: FloatArray, basis: Basis
+) -> tuple[FittedPart, ...]:
+    """The parts with their path context's GMS (force and elements) from the
+    coefficients ``theta`` of ``basis``."""
     n = parts[0].phi.shape[1]
+    gms = basis.gms(theta[:n])
     return tuple(
-        dataclasses.replace(fp, ctx=dataclasses.replace(fp.ctx, gms_force_N=fp.phi @ theta[:n]))
+        dataclasses.replace(
+            fp, ctx=dataclasses.replace(fp.ctx, gms_force_N=fp.phi @ theta[:n], gms=gms)
+        )
         for fp in parts
     )
 
@@ -306,7 +313,7 @@ def rebased(baseline: Baseline, basis: Basis) -> tuple[FittedPart, ...]:
     gram = GramDesign(
         [PartDesign(fp.base, fp.part.force_N, fp.part.train, fp.part.held) for fp in parts]
     )
-    return refit_gms_force(parts, gram.fit())
+    return refit_gms_force(parts, gram.fit(), basis)
 
 
 def refine_slip_level(

@@ -25,8 +25,11 @@ from gms_comp.measured.diagnosis.design import (
 )
 from gms_comp.runtime import effects as fx
 
-# A basis value below this fraction of its largest magnitude counts as "not acting".
-SUPPORT_FRACTION = 1e-3
+# A basis value below this fraction of its largest magnitude counts as "not acting" (where
+# an effect is judged locally: a dwell gain's raised elements hold a few per cent of their
+# stretch through a whole standstill when the move before it ended before they slipped;
+# counted from 1e-3 of its peak, that tail took 20-40 % of its held-out support).
+SUPPORT_FRACTION = 0.1
 
 
 @dataclass(frozen=True)

@@ -76,7 +76,7 @@ def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
         chosen, history = _prune(parts, chosen, history, cfg, baseline.sliding_force_N)
     theta = GramDesign(design(parts, chosen)).fit()
     for _ in range(JOINT_REFITS if chosen else 0):
-        parts = refit_gms_force(parts, theta)
+        parts = refit_gms_force(parts, theta, basis)
         chosen = _refine_shapes(parts, chosen, baseline.presliding_m)
         theta = GramDesign(design(parts, chosen)).fit()
     if len(chosen) > 1:
@@ -171,4 +171,4 @@ def _refine_shapes(
 
 def _run(fp: FittedPart, gms: GmsParams, extensions: Sequence[fx.Effect]) -> FloatArray:
     force = simulate(gms, fp.part.kin.position_m, fp.part.kin.velocity_m_s)[0]
-    return fx.apply_extensions(extensions, dataclasses.replace(fp.ctx, gms_force_N=force))
+    return fx.apply_extensions(extensions, dataclasses.replace(fp.ctx, gms_force_N=force, gms=gms))

@@ -23,12 +23,13 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
-from typing import ClassVar
+from typing import ClassVar, Protocol
 
 import numpy as np
 from scipy import signal
 
 from gms_comp.arrays import FloatArray
+from gms_comp.gms import GmsParams
 from gms_comp.runtime.effects.path import Context
 
 Shape = dict[str, float]
@@ -85,6 +86,20 @@ class Effect:
     def apply(self, ctx: Context, force_N: FloatArray) -> FloatArray:
         """The measured force this effect makes of ``force_N`` (batch)."""
         return force_N + self.basis(ctx, self.shape()) @ self.coefficients()
+
+    def stream(self, gms: GmsParams | None) -> Stateful | None:
+        """The per-sample form of an effect whose force depends on more history than the
+        path quantities hold (its own state, advanced by each one-sample context), or
+        None: :meth:`apply` on each sample's context is the effect."""
+        return None
+
+
+class Stateful(Protocol):
+    """A per-sample effect with its own state (:meth:`Effect.stream`)."""
+
+    def run(self, ctx: Context) -> FloatArray:
+        """The effect's extra force along ``ctx``, continuing from the state."""
+        ...
 
 
 @dataclass(frozen=True)

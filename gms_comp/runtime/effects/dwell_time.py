@@ -1,89 +1,207 @@
 """``dwell_time``: break-away limits after a standstill of duration t_d scaled by
 1 + gamma ln(1 + t_d/tau), gamma >= 0; the gain is lost once the elements slip again.
 
-A raised limit does not raise the force at once: an element that has come to rest at its
-limit x_i stretches on with its stiffness k_i for another gamma L x_i (L = ln(1 + t_d/tau))
-before it slips back to its old limit. Over the elements the extra force after a travel s
-from the rest position is s times the stiffness of the elements not yet slipped; for
-limits spread exponentially about a length x (stiffness F/x in all, F the GMS force) it is
+The raised limits are the GMS's own, element by element: when the motion resumes after a
+standstill, every element sticks where it rested and may stretch up to its limit at the
+current speed (level(v) W_i) times g = 1 + G ln(1 + t_d/tau) before it slips to its
+sliding force; from then on it is the plain element again. The effect is that force less
+the same elements held to g = 1 (the climb from the stick to the sliding level at a start
+is the baseline's, not the dwell's): it follows each element's break-away, rising with the
+stiffness of the elements not yet slipped and gone once the widest one slips. (A fixed
+ramp in the distance since the start, the form before, could not follow a start faster
+than the slip level's transition: on an independent generator's traces it was named 0
+times in 10 with break-away peaks of 10-30 % of the level.)
 
-    gamma F (s / w) exp(-s / (w L)),  w = gamma x,
-
-a ramp that peaks at gamma L F / e after a travel w L and is gone a few w L later. With
-the shape (tau, w) fixed it is linear in gamma, a column of the design."""
+The width of each element's window grows with g, its height too; the design column is
+the extra force at a gain ``reach`` (G) divided by G, so that its coefficient ``gamma``
+is the gain when ``reach`` fits it, and with the shape (tau, reach) fixed the effect is
+linear in ``gamma``. It needs the GMS whose limits it raises (``Context.gms``; per sample,
+:meth:`DwellTime.stream` carries the elements' state)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar
 
+import numba
 import numpy as np
 
 from gms_comp.arrays import FloatArray
+from gms_comp.gms import GmsParams
 from gms_comp.runtime.effects.base import Effect, Shape, duration
 from gms_comp.runtime.effects.path import Context
 
 # The time constants the diagnosis considers (s): far below a servo cycle or above a
 # trace's length a dwell gain cannot be told from a constant one.
 TAU_RANGE_S = (1e-4, 1e2)
-# Beyond this many decay lengths the ramp is taken as gone (6 e^-6 is 4 % of its peak):
-# its support, where the diagnosis judges it, stays where it acts.
-MAX_DECAYS = 6.0
+# The gains at which the column's windows are computed (G: 0.5 % to 1.5 x the limits).
+REACH_RANGE = (5e-3, 1.5)
+# Layout of the state after the 5 element vectors: last position, last rest flag, first.
+_PREV_X, _PREV_REST, _FIRST = range(3)
+
+
+@numba.njit(cache=True, inline="always")
+def _element(
+    f: float, d: float, g: float, k: float, w: float, level: float, dx: float
+) -> tuple[float, float, float]:
+    """One Maxwell-slip element (the GMS kernel's rule, rate-independent); while held
+    since a start (g >= 1) it slips only beyond g times its limit at the current speed,
+    and is the kernel's element again (g = 0) once it has."""
+    if d != 0.0 and d * dx >= 0.0:
+        return d * level * w, d, g
+    stretch = (f if d == 0.0 else d * w) + k * dx
+    threshold = w * level * g if g >= 1.0 else w
+    if stretch > threshold:
+        return level * w, 1.0, 0.0
+    if stretch < -threshold:
+        return -level * w, -1.0, 0.0
+    return stretch, 0.0, g
+
+
+@numba.njit(cache=True)
+def _raised_run(
+    k: FloatArray, w: FloatArray, scalars: FloatArray, reach: float, tau: float,
+    x: FloatArray, v: FloatArray, resting: FloatArray, dwell: FloatArray,
+    state: FloatArray, out: FloatArray,
+) -> None:  # fmt: skip
+    """The raised elements' force less that of the same elements held to their plain
+    limits, per sample: at a start both stick where they rested and slip at their limit
+    at the current speed, times the gain or times 1, so the difference is the gain's
+    alone (the climb from the stick to the sliding level belongs to the baseline).
+    ``state`` (6 n + 3: the held elements' forces, slip directions and holds, the
+    raised ones' alike, then the scalars) is advanced in place, so a
+    stream of one-sample calls equals one batch."""
+    n = k.size
+    tail = 6 * n
+    cv, vt, expo = scalars[0], scalars[1], scalars[2]
+    for j in range(x.size):
+        if state[tail + _FIRST] == 0.0:
+            state[tail + _PREV_X] = x[j]
+            state[tail + _FIRST] = 1.0
+        dx = x[j] - state[tail + _PREV_X]
+        state[tail + _PREV_X] = x[j]
+        u = abs(v[j]) / vt
+        p = u * u if expo == 2.0 else u**expo
+        level = cv + (1.0 - cv) * math.exp(-p)
+        if resting[j] == 0.0 and state[tail + _PREV_REST] == 1.0:
+            # the motion resumes: every element sticks where it rested, held
+            gain = 1.0 + reach * math.log1p(dwell[j] / tau)
+            for i in range(n):
+                state[n + i], state[2 * n + i] = 0.0, 1.0
+                state[4 * n + i], state[5 * n + i] = 0.0, gain
+        state[tail + _PREV_REST] = resting[j]
+        extra = 0.0
+        for i in range(n):
+            held = _element(state[i], state[n + i], state[2 * n + i], k[i], w[i], level, dx)
+            state[i], state[n + i], state[2 * n + i] = held
+            raised = _element(
+                state[3 * n + i], state[4 * n + i], state[5 * n + i], k[i], w[i], level, dx
+            )
+            state[3 * n + i], state[4 * n + i], state[5 * n + i] = raised
+            extra += raised[0] - held[0]
+        out[j] = extra
+
+
+class RaisedLimits:
+    """``scale`` times the extra force of a GMS's limits raised (by ``reach``) after
+    standstills, batch or per sample (one state carried from call to call)."""
+
+    def __init__(self, gms: GmsParams, tau_s: float, reach: float, scale: float = 1.0) -> None:
+        active = gms.limit_N > 0.0
+        self.k = np.ascontiguousarray(gms.stiffness_N_per_m[active], dtype=np.float64)
+        self.w = np.ascontiguousarray(gms.limit_N[active], dtype=np.float64)
+        self.scalars = gms.scalars
+        self.tau_s = max(tau_s, TAU_RANGE_S[0])
+        self.reach = reach
+        self.scale = scale
+        self.reset()
+
+    def reset(self) -> None:
+        """Virgin elements, no standstill seen."""
+        self.state = np.zeros(6 * self.k.size + 3)
+
+    def run(self, ctx: Context) -> FloatArray:
+        """The (scaled) extra force along ``ctx``, continuing from the current state."""
+        out = np.empty(ctx.position_m.size)
+        _raised_run(
+            self.k, self.w, self.scalars, self.reach, self.tau_s,
+            np.ascontiguousarray(ctx.position_m, dtype=np.float64),
+            np.ascontiguousarray(ctx.velocity_m_s, dtype=np.float64),
+            np.ascontiguousarray(ctx.resting, dtype=np.float64),
+            np.ascontiguousarray(ctx.dwell_s, dtype=np.float64),
+            self.state, out,
+        )  # fmt: skip
+        return self.scale * out
+
+
+def _gms_of(ctx: Context) -> GmsParams:
+    if ctx.gms is None:
+        raise ValueError("dwell_time raises the GMS's own limits: the context needs its GMS")
+    return ctx.gms
 
 
 @dataclass(frozen=True)
 class DwellTime(Effect):
-    """Break-away limits raised by 1 + gamma ln(1 + t_d/tau) after a standstill;
-    ``breakaway_m`` is w = gamma x, the extra stretch of the elements per unit of the
-    logarithm (so the raised force is lost over a few ``breakaway_m`` ln(1 + t_d/tau))."""
+    """Break-away limits raised by 1 + gamma ln(1 + t_d/tau) after a standstill, element
+    by element (module docstring); ``reach`` is the gain the column's windows are
+    computed at (the fit's shape parameter, gamma's own value when it fits)."""
 
     name: ClassVar[str] = "dwell_time"
-    SHAPE: ClassVar[tuple[str, ...]] = ("tau_s", "breakaway_m")
+    SHAPE: ClassVar[tuple[str, ...]] = ("tau_s", "reach")
     COEFFICIENT_LOWER: ClassVar[float] = 0.0
     gamma: float
     tau_s: float
-    breakaway_m: float
+    reach: float
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:
-        """F (s / w) exp(-s / (w L)) after a standstill (module docstring), 0 at rest."""
-        w = shape["breakaway_m"]
-        gain = np.log1p(ctx.dwell_s / max(shape["tau_s"], TAU_RANGE_S[0]))
-        s = ctx.distance_since_start_m
-        decay = np.zeros_like(s)
-        raised = (
-            (gain > 0.0)
-            & (ctx.resting == 0.0)
-            & (s < MAX_DECAYS * w * gain)
-            & (ctx.gms_force_N * ctx.direction > 0.0)
-        )
-        decay[raised] = np.exp(-s[raised] / (w * gain[raised]))
-        return (ctx.gms_force_N * (s / w) * decay)[:, None]
+        """The raised GMS's extra force at the gain ``reach``, over ``reach``."""
+        raised = RaisedLimits(_gms_of(ctx), shape["tau_s"], shape["reach"], 1 / shape["reach"])
+        return raised.run(ctx)[:, None]
 
     @classmethod
     def from_coefficients(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Effect:
         """The effect with gain ``gamma = coefficients[0]``."""
-        return cls(float(coefficients[0]), shape["tau_s"], shape["breakaway_m"])
+        return cls(float(coefficients[0]), shape["tau_s"], shape["reach"])
 
     def coefficients(self) -> FloatArray:
         """``[gamma]``."""
         return np.array([self.gamma])
 
+    def stream(self, gms: GmsParams | None) -> RaisedLimits:
+        """The per-sample form: its elements' state is carried from sample to sample."""
+        if gms is None:
+            raise ValueError("dwell_time raises the GMS's own limits: the stream needs its GMS")
+        return RaisedLimits(gms, self.tau_s, self.reach, self.gamma / self.reach)
+
     @classmethod
     def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
-        """tau over five decades from 1 ms; w from 1 % to 30 % of the presliding length
-        (gamma 0.01-0.3 of limits spread over about that length)."""
-        top = min(TAU_RANGE_S[1], duration(ctx))
+        """tau over the decades from :func:`shortest_tau` to the trace's length; gains
+        3-30 %."""
+        lo, hi = cls.shape_bounds(ctx, presliding_m)["tau_s"]
         return [
-            {"tau_s": float(tau), "breakaway_m": scale * presliding_m}
-            for tau in np.geomspace(1e-3, max(top, 2e-3), 9)
-            for scale in (0.01, 0.03, 0.1, 0.3)
+            {"tau_s": float(tau), "reach": reach}
+            for tau in np.geomspace(lo, max(min(hi, duration(ctx)), 2 * lo), 9)
+            for reach in (0.03, 0.1, 0.3)
         ]
 
     @classmethod
     def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
-        """tau in ``TAU_RANGE_S``; w within 1 % to 3 presliding lengths (below, the ramp
-        is over within an encoder step or two of a start, where filter and quantisation
-        make their own)."""
-        return {"tau_s": TAU_RANGE_S, "breakaway_m": (1e-2 * presliding_m, 3 * presliding_m)}
+        """tau from :func:`shortest_tau` to ``TAU_RANGE_S``'s top, the gain in
+        ``REACH_RANGE``."""
+        return {"tau_s": (shortest_tau(ctx), TAU_RANGE_S[1]), "reach": REACH_RANGE}
+
+
+def shortest_tau(ctx: Context) -> float:
+    """The shortest time constant a dwell gain is fitted with: a tenth of the median
+    standstill. Far below every dwell, ln(1 + t_d / tau) hardly changes with the dwell
+    (from 0.05 to 3 s at tau = 1 ms: 3.9 to 8.0), so the gain is the same at every start,
+    and on an effect-free trace such a column took up the baseline's mismatch at starts
+    (held-out gain 4 %); at a tenth of the median it still grows 2.2 x from a fifth of
+    the median dwell to the median."""
+    starts = np.flatnonzero((ctx.resting[1:] == 0.0) & (ctx.resting[:-1] == 1.0)) + 1
+    if starts.size == 0:
+        return TAU_RANGE_S[0]
+    return float(np.clip(0.1 * np.median(ctx.dwell_s[starts]), *TAU_RANGE_S))

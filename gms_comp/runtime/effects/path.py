@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gms_comp.arrays import FloatArray
+from gms_comp.gms import GmsParams
 from gms_comp.kinematics import Kinematics
 
 # Below this speed an axis counts as standing still unless a caller says otherwise.
@@ -165,6 +166,9 @@ class Context:
     resting: FloatArray
     elapsed_s: FloatArray
     sample_time_s: float
+    # the GMS whose force ``gms_force_N`` is (an effect that raises its elements' limits
+    # needs them; None where only the force is known: ``dataclasses.replace`` sets it)
+    gms: GmsParams | None = None
 
     @classmethod
     def along(
@@ -217,7 +221,7 @@ class Context:
     @classmethod
     def with_path(
         cls, t: FloatArray, x: FloatArray, v: FloatArray, a: FloatArray, f: FloatArray,
-        path: FloatArray, sample_time_s: float,
+        path: FloatArray, sample_time_s: float, gms: GmsParams | None = None,
     ) -> Context:  # fmt: skip
         """A context from the samples and their precomputed path quantities."""
         return cls(
@@ -230,4 +234,5 @@ class Context:
             resting=path[:, _OUT_RESTING],
             elapsed_s=path[:, _OUT_ELAPSED],
             sample_time_s=sample_time_s,
+            gms=gms,
         )  # fmt: skip

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy import signal
 
+from gms_comp.gms import GmsParams
 from gms_comp.runtime.effects.base import Effect, FilterEffect
 from gms_comp.runtime.effects.path import (
     DEFAULT_STANDSTILL_SPEED_M_S,
@@ -41,8 +42,10 @@ class ExtensionStream:
         standstill_speed_m_s: float = DEFAULT_STANDSTILL_SPEED_M_S,
         reversal_deadband_m: float = 0.0,
         rest_band_m: float = 0.0,
+        gms: GmsParams | None = None,
     ) -> None:
         self.extensions = tuple(extensions)
+        self.gms = gms
         self.sample_time_s = sample_time_s
         self.standstill_speed_m_s = standstill_speed_m_s
         self.reversal_deadband_m = reversal_deadband_m
@@ -57,6 +60,8 @@ class ExtensionStream:
         self._path = fresh_path_state()
         self._row = np.empty((1, N_OUT))
         self._zi: list[FloatArray] | None = None
+        # effects with their own state (dwell_time's raised elements), fresh
+        self._stateful = [e.stream(self.gms) for e in self.extensions]
 
     def step(
         self,
@@ -72,11 +77,13 @@ class ExtensionStream:
         ctx = Context.with_path(
             np.array([time_s]), np.array([position_m]), np.array([velocity_m_s]),
             np.array([acceleration_m_s2]), np.array([gms_force_N]), self._row,
-            self.sample_time_s,
+            self.sample_time_s, self.gms,
         )  # fmt: skip
         force = gms_force_N
-        for effect in self.extensions:
-            if not isinstance(effect, FilterEffect):
+        for effect, stateful in zip(self.extensions, self._stateful, strict=True):
+            if stateful is not None:
+                force += float(stateful.run(ctx)[0])
+            elif not isinstance(effect, FilterEffect):
                 force = float(effect.apply(ctx, np.array([force]))[0])
         if self._zi is None:  # start at rest at the first value, as the batch filter does
             self._zi = [signal.lfilter_zi(b, a) * force for b, a in self._filters]
