@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from gms_comp.gms import GmsParams, simulate
 from gms_comp.runtime import effects as fx
+from gms_comp.runtime.effects import dwell_time
 
 
 def _ctx(
@@ -232,39 +233,45 @@ def test_measurement_effects_are_flagged() -> None:
 
 
 def _slide_hold_slide(back: bool) -> tuple[np.ndarray, ...]:
-    """1 ms samples: 30 um forward at 0.3 mm/s, 0.5 s at rest, then 30 um on (or back)."""
-    v_move = np.full(100, 3e-4)
-    v = np.concatenate([v_move, np.zeros(500), -v_move if back else v_move, np.zeros(50)])
-    x = np.cumsum(v) * 1e-3
-    t = np.arange(x.size) * 1e-3
+    """0.1 ms samples: 30 um forward at 0.3 mm/s, 0.5 s at rest, then 30 um on (or back)."""
+    v_move = np.full(1000, 3e-4)
+    v = np.concatenate([v_move, np.zeros(5000), -v_move if back else v_move, np.zeros(500)])
+    x = np.cumsum(v) * 1e-4
+    t = np.arange(x.size) * 1e-4
     return t, x, v
 
 
 @pytest.mark.parametrize("back", [False, True])
 def test_dwell_gain_raises_one_element_by_gamma_log_of_the_dwell(back: bool) -> None:
-    """One element of limit W = 2 N and break-away 4 um, C_v = 1: after 0.5 s at rest its
-    limit is g W, g = 1 + gamma ln(1 + 0.5 / tau). Going on, it rests at W and stretches
-    to g W before it slips (the plain one slides on at W): the extra force rises to
-    (g - 1) W; going back, the plain one slips at -W after 8 um, the raised one at -g W
-    after (1 + g) 4 um: the extra falls to -(g - 1) W. Then they are one element again."""
+    """One element of limit W = 2 N and break-away d = 4 um, C_v = 1: after 0.5 s at rest
+    its limit is g W, g = 1 + gamma ln(1 + 0.5 / tau). Going on, it rests at W and
+    stretches to g W before it slips (the plain one slides on at W): the extra force is a
+    ramp of stiffness W / d up to (g - 1) W over (g - 1) d of travel, of area
+    (g - 1)^2 W d / 2; going back, the plain one slips at -W after 2 d, the raised one at
+    -g W after (1 + g) d: the same ramp, negative. The effect spreads the limit over
+    break-aways d exp(+-SPREAD): the peak is at most (g - 1) W, reached within that
+    spread, the area (g - 1)^2 W mean(d_j) / 2; after the widest has slipped, nothing."""
     t, x, v = _slide_hold_slide(back)
-    w, k = 2.0, 2.0 / 4e-6
-    gms = GmsParams(np.array([k]), np.array([w]))
+    w, d = 2.0, 4e-6
+    gms = GmsParams(np.array([w / d]), np.array([w]))
     force = simulate(gms, x, v)[0]
     ctx = dataclasses.replace(fx.Context.along(t, x, v, 0 * t, force), gms=gms)
     gamma, tau = 0.2, 0.1
     g = 1.0 + gamma * math.log1p(0.5 / tau)
     extra = fx.DwellTime(gamma, tau, gamma).apply(ctx, force) - force
     assert ctx.dwell_s[-1] == pytest.approx(0.5, abs=1e-9)
-    restart = 600
+    restart = 6000
     assert np.all(extra[:restart] == 0.0)  # nothing before the first standstill ends
     sign = -1.0 if back else 1.0
-    step = k * 3e-7  # the force of one sample's travel
-    peak = float(np.max(sign * extra))
-    assert (g - 1.0) * w - step <= peak <= (g - 1.0) * w + 1e-9
-    # where: going on, within the first (g - 1) 4 um; going back, after 8 um
-    where = (int(np.argmax(sign * extra)) - restart + 1) * 3e-7
-    expected = (g - 1.0) * 4e-6 if not back else (1.0 + g) * 4e-6
-    assert where == pytest.approx(expected, abs=3e-7)
-    # slipped: the plain element again
-    np.testing.assert_allclose(extra[restart + round(expected / 3e-7) + 2 :], 0.0, atol=1e-9)
+    travel = (np.arange(x.size) - restart + 1) * 3e-8
+    spread = np.exp(np.linspace(-dwell_time.SPREAD, dwell_time.SPREAD, dwell_time.SPREAD_ELEMENTS))
+    # sub-element j's window: from where the plain one slipped (0 going on, 2 d_j going
+    # back) to where the raised one does ((g - 1) d_j, (1 + g) d_j)
+    lo = 2.0 * d * spread[0] if back else (g - 1.0) * d * spread[0]
+    hi = (1.0 + g if back else g - 1.0) * d * spread[-1]
+    assert 0.0 < float(np.max(sign * extra)) <= (g - 1.0) * w + 1e-9
+    assert lo - 3e-8 <= float(travel[np.argmax(sign * extra)]) <= hi + 3e-8
+    area = float(np.sum(sign * extra) * 3e-8)
+    assert area == pytest.approx((g - 1.0) ** 2 * w * d * np.mean(spread) / 2, rel=0.03)
+    gone = travel > hi + 6e-8
+    np.testing.assert_allclose(extra[gone], 0.0, atol=1e-9)  # slipped: the plain element

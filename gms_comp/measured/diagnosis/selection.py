@@ -30,6 +30,10 @@ from gms_comp.runtime import effects as fx
 # passes over the parameters at each step.
 REFINE_STEPS = (1.3, 1.08)
 MAX_PASSES = 4
+# Fixed-point steps that make a shape agree with the size fitted on it, and how far
+# apart the two may be for the effect to be kept (a factor).
+CONSISTENCY_STEPS = 3
+CONSISTENT_WITHIN = 1.5
 # Contiguous chunks of held-out samples for the significance of an improvement.
 SIGNIFICANCE_CHUNKS = 50
 # An effect acting on less than this share of the held-out samples is judged there.
@@ -113,7 +117,7 @@ def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: floa
             rms(local1) <= (1.0 - cfg.local_margin) * rms(local0)
             and significance(local0, local1) >= cfg.significance_t
         )
-    if not worth:
+    if not worth or not consistent(scorer, trial):
         return False
     return float(np.max(np.abs(scorer.change(trial)))) >= cfg.min_effect_fraction * level_N
 
@@ -141,7 +145,7 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
                 continue
             best = min(trials, key=lambda t: t.heldout_rms_N)
             if best.heldout_rms_N < scorer.heldout_rms_N:
-                best = _refine(scorer, best, baseline.presliding_m)
+                best = _consistent(scorer, _refine(scorer, best, baseline.presliding_m))
             last.append(best)
         kept = [t for t in last if admissible(cfg, scorer, t, level)]
         if not kept:
@@ -164,6 +168,35 @@ def _refine(scorer: Scorer, best: Trial, presliding_m: float) -> Trial:
     bounds = best.option.effect.shape_bounds(scorer.parts[0].ctx, presliding_m)
     opt, _ = local_search(best.option, cost, best.heldout_rms_N, bounds)
     return best if opt is best.option else trials[id(opt)]
+
+
+def _consistent(scorer: Scorer, trial: Trial) -> Trial:
+    """``trial`` with its shape made to agree with its fitted size (a few fixed-point
+    steps; the effect's own rule, :meth:`~gms_comp.runtime.effects.Effect.consistent_shape`)."""
+    if trial.option.is_filter:
+        return trial
+    effect = trial.option.effect
+    for _ in range(CONSISTENCY_STEPS):
+        shape = effect.consistent_shape(trial.theta[scorer.theta.size :], trial.option.shape)
+        if all(np.isclose(shape[k], trial.option.shape[k], rtol=0.1) for k in shape):
+            return trial
+        trial = scorer.score(Option(effect, shape))
+    return trial
+
+
+def consistent(scorer: Scorer, trial: Trial) -> bool:
+    """Whether ``trial``'s shape agrees with its size within ``CONSISTENT_WITHIN``."""
+    if trial.option.is_filter:
+        return True
+    shape = trial.option.effect.consistent_shape(
+        trial.theta[scorer.theta.size :], trial.option.shape
+    )
+    return all(
+        1 / CONSISTENT_WITHIN <= shape[k] / trial.option.shape[k] <= CONSISTENT_WITHIN
+        if trial.option.shape[k]
+        else shape[k] == 0
+        for k in shape
+    )
 
 
 def describe_trials(trials: Sequence[Trial], baseline_rms_N: float) -> list[dict[str, object]]:

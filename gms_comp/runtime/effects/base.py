@@ -75,6 +75,13 @@ class Effect:
         """The range of each shape parameter the diagnosis's local search may reach."""
         return {}
 
+    @classmethod
+    def consistent_shape(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Shape:
+        """The shape that agrees with the fitted ``coefficients`` (an effect whose shape
+        depends on its own size, as a dwell gain's windows do on the gain); ``shape``
+        itself where size and shape are independent."""
+        return dict(shape)
+
     def shape(self) -> Shape:
         """The shape parameters of this effect."""
         return {k: getattr(self, k) for k in self.SHAPE}
