@@ -27,12 +27,7 @@ _diagnosed: dict[tuple[str, int], tuple[Generated, Outcome]] = {}
 # Cases the diagnosis misses today, measured (issue 15 stays open on them). Strict: the
 # day one passes, the suite says so and the entry must go. KNOWN_MISSES: the name (and
 # so the parameter too); KNOWN_PARAMETER_MISSES: named right, main parameter off.
-KNOWN_MISSES = {
-    ("dwell_time", 101): "named none: gamma 0.088 over 20 break-aways whose peaks are 1.2-1.6 x "
-    "the noise; with the exact truth as a column the break-aways' local RMS falls 22 % "
-    "(z 6.7), with the catalogue's ramp 7 %: the ramp ignores the climb from the stick "
-    "to the sliding level (C_v) that precedes a dwell's extra force at a fast start",
-}
+KNOWN_MISSES: dict[tuple[str, int], str] = {}
 KNOWN_PARAMETER_MISSES: dict[tuple[str, int], str] = {}
 
 
