@@ -19,11 +19,10 @@ class DiagnosisConfig:
     # Elements of the free GMS, on a dense grid over the break-aways a coarse pass of 8
     # found (8 or fewer: one pass over the whole range).
     n_elements: int = field(default=16, metadata=in_range(1, 40))
-    # Held out: a third of ``n_blocks`` contiguous blocks, every third in the order of
-    # their acceleration energy (:func:`~gms_comp.measured.diagnosis.prepare.held_out`).
-    # Fast moves are a small part of a measured trace: with 10 blocks the held-out part
-    # of one independent trace held 6 % of the training part's acceleration RMS (an
-    # inertia could not be judged); with 60, 50-130 % on five.
+    # Held out: every third of ``n_blocks`` contiguous blocks. Fast moves are a small part
+    # of a measured trace: with 10 blocks the held-out part of one independent trace held
+    # 6 % of the training part's acceleration RMS (an inertia could not be judged); with
+    # 60, 50-130 % on five.
     n_blocks: int = field(default=60, metadata=in_range(3, 1000))
     # An effect is kept if it lowers the held-out RMS by more than ``margin`` (relative),
     # or by more than ``small_margin`` with a t statistic over held-out chunks of at

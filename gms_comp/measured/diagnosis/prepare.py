@@ -70,8 +70,8 @@ def position_resolution(position_m: FloatArray) -> float:
 def prepare(
     trace: Trace, force_kind: ForceKind, validation: Trace | None, cfg: DiagnosisConfig
 ) -> Prepared:
-    """The parts of ``trace`` (held out: :func:`held_out`) or of ``trace`` and
-    ``validation`` (held out whole).
+    """The parts of ``trace`` (held-out: every third of ``cfg.n_blocks`` blocks, so both
+    parts hold every kind of motion) or of ``trace`` and ``validation`` (held out whole).
 
     Raises
     ------
@@ -89,7 +89,7 @@ def prepare(
     check_usable(trace, kin, deadband, still)
     n = len(trace)
     if validation is None:
-        held = held_out(kin.acceleration_m_s2, cfg.n_blocks)
+        held = (np.arange(n) * cfg.n_blocks // n) % 3 == 1
         parts: tuple[Part, ...] = (Part(kin, trace.force_N, ~held, held),)
     else:
         vkin = kinematics(validation, cutoff, accel_cutoff)
@@ -101,21 +101,6 @@ def prepare(
         )
     rest_band = cfg.rest_band_steps * resolution
     return Prepared(parts, drive, force_kind, still, deadband, resolution, rest_band)
-
-
-def held_out(acceleration_m_s2: FloatArray, n_blocks: int) -> BoolArray:
-    """The held-out rows: a third of ``n_blocks`` contiguous blocks, every third in the
-    order of their acceleration energy, so that the held-out part holds a third of the
-    fast moves as of the slow ones. (Every third block in time order held 6 % to 130 % of
-    the training part's acceleration RMS on independent traces: a trace whose few fast
-    moves all fell in training blocks could not show a mass it was fitted with: on one,
-    a mass within 3 % of the truth lowered the held-out RMS by 0.03 %.)"""
-    n = acceleration_m_s2.size
-    block = np.arange(n) * n_blocks // n
-    energy = np.bincount(block, weights=acceleration_m_s2**2, minlength=n_blocks)
-    order = np.argsort(-energy, kind="stable")
-    chosen = order[1::3]
-    return np.isin(block, chosen)
 
 
 def acceleration_cutoff(trace: Trace, resolution_m: float) -> float:

@@ -14,9 +14,8 @@
 5. :mod:`.structure`: ``unknown`` when the extended model's residual still has
    structure; :mod:`.result`: the record and its JSON.
 
-Held-out samples are a third of ``n_blocks`` contiguous blocks of the trace, every third
-in the order of their acceleration energy (so both parts hold fast and slow motion
-alike), or a whole second trace when one is given.
+Held-out samples are every third of ``n_blocks`` contiguous blocks of the trace (so
+both parts hold every kind of motion), or a whole second trace when one is given.
 """
 
 from __future__ import annotations
