@@ -33,6 +33,7 @@ MAX_PASSES = 4
 # Fixed-point steps that make a shape agree with the size fitted on it, and how far
 # apart the two may be for the effect to be kept (a factor).
 CONSISTENCY_STEPS = 3
+CONSISTENCY_CONVERGED = 1.1
 CONSISTENT_WITHIN = 1.5
 # Contiguous chunks of held-out samples for the significance of an improvement.
 SIGNIFICANCE_CHUNKS = 50
@@ -171,32 +172,35 @@ def _refine(scorer: Scorer, best: Trial, presliding_m: float) -> Trial:
 
 
 def _consistent(scorer: Scorer, trial: Trial) -> Trial:
-    """``trial`` with its shape made to agree with its fitted size (a few fixed-point
-    steps; the effect's own rule, :meth:`~gms_comp.runtime.effects.Effect.consistent_shape`)."""
-    if trial.option.is_filter:
-        return trial
-    effect = trial.option.effect
+    """``trial`` with its shape made to agree with its fitted size (at most
+    ``CONSISTENCY_STEPS`` fixed-point steps of the effect's own rule,
+    :meth:`~gms_comp.runtime.effects.Effect.consistent_shape`)."""
     for _ in range(CONSISTENCY_STEPS):
-        shape = effect.consistent_shape(trial.theta[scorer.theta.size :], trial.option.shape)
-        if all(np.isclose(shape[k], trial.option.shape[k], rtol=0.1) for k in shape):
-            return trial
-        trial = scorer.score(Option(effect, shape))
+        shape, factor = _agreement(scorer, trial)
+        if factor <= CONSISTENCY_CONVERGED:
+            break
+        trial = scorer.score(Option(trial.option.effect, shape))
     return trial
 
 
 def consistent(scorer: Scorer, trial: Trial) -> bool:
     """Whether ``trial``'s shape agrees with its size within ``CONSISTENT_WITHIN``."""
+    return _agreement(scorer, trial)[1] <= CONSISTENT_WITHIN
+
+
+def _agreement(scorer: Scorer, trial: Trial) -> tuple[dict[str, float], float]:
+    """The shape that agrees with ``trial``'s fitted size, and the largest factor
+    between it and ``trial``'s (1: they agree; a filter always does)."""
+    shape = dict(trial.option.shape)
     if trial.option.is_filter:
-        return True
-    shape = trial.option.effect.consistent_shape(
-        trial.theta[scorer.theta.size :], trial.option.shape
-    )
-    return all(
-        1 / CONSISTENT_WITHIN <= shape[k] / trial.option.shape[k] <= CONSISTENT_WITHIN
-        if trial.option.shape[k]
-        else shape[k] == 0
+        return shape, 1.0
+    agreed = trial.option.effect.consistent_shape(trial.theta[scorer.theta.size :], shape)
+    factors = [
+        max(agreed[k] / shape[k], shape[k] / agreed[k]) if agreed[k] * shape[k] > 0 else
+        (1.0 if agreed[k] == shape[k] else np.inf)
         for k in shape
-    )
+    ]  # fmt: skip
+    return agreed, max(factors, default=1.0)
 
 
 def describe_trials(trials: Sequence[Trial], baseline_rms_N: float) -> list[dict[str, object]]:
