@@ -31,6 +31,13 @@ MIN_SPEED_SPREAD = 1.5
 CONSTANT_FORCE_FRACTION = 1e-9
 
 
+# An encoder's step: seen in at least STEP_SHARE of the nonzero steps, and at least
+# QUANTISED_SHARE of them whole multiples of it within STEP_TOLERANCE (of one step).
+STEP_SHARE = 1e-3
+STEP_TOLERANCE = 0.05
+QUANTISED_SHARE = 0.9
+
+
 @dataclass(frozen=True)
 class Part:
     """One trace prepared for fitting: kinematics, force, training and held-out rows."""
@@ -60,11 +67,26 @@ class Prepared:
 
 
 def position_resolution(position_m: FloatArray) -> float:
-    """The smallest position step the sensor reports (the 5th percentile of the
-    nonzero steps of the raw position)."""
+    """The smallest position step the sensor reports: the encoder's step when the steps
+    are whole multiples of one (the smallest step seen at least ``STEP_SHARE`` of the
+    time, within ``STEP_TOLERANCE``), else the 5th percentile of the nonzero steps.
+
+    The percentile alone read a 39 nm encoder as 0.43 um on an independent trace whose
+    motion is mostly fast (11 x; 4-38 x on six of ten such traces), which put the free
+    GMS's smallest break-away above the true ones and the reversal deadband at 0.26 um."""
     steps = np.abs(np.diff(position_m))
     steps = steps[steps > 0]
-    return float(np.percentile(steps, 5)) if steps.size else 0.0
+    if steps.size == 0:
+        return 0.0
+    percentile = float(np.percentile(steps, 5))
+    for step in np.unique(steps[steps <= percentile]):
+        if np.count_nonzero(steps <= step * (1 + STEP_TOLERANCE)) < STEP_SHARE * steps.size:
+            continue
+        counts = steps / step
+        if np.mean(np.abs(counts - np.round(counts)) <= STEP_TOLERANCE) >= QUANTISED_SHARE:
+            return float(step)
+        break
+    return percentile
 
 
 def prepare(
