@@ -108,6 +108,10 @@ class Stateful(Protocol):
         """The effect's extra force along ``ctx``, continuing from the state."""
         ...
 
+    def step(self, position_m: float, velocity_m_s: float, resting: float, dwell_s: float) -> float:
+        """One sample of :meth:`run` (the path's rest flag and dwell at that sample)."""
+        ...
+
 
 @dataclass(frozen=True)
 class FilterEffect(Effect):

@@ -29,7 +29,7 @@ import numba
 import numpy as np
 
 from gms_comp.arrays import FloatArray
-from gms_comp.gms import GmsParams
+from gms_comp.gms import GmsParams, _level
 from gms_comp.runtime.effects.base import Effect, Shape, duration
 from gms_comp.runtime.effects.path import Context
 
@@ -83,16 +83,13 @@ def _raised_run(
     stream of one-sample calls equals one batch."""
     n = k.size
     tail = 6 * n
-    cv, vt, expo = scalars[0], scalars[1], scalars[2]
     for j in range(x.size):
         if state[tail + _FIRST] == 0.0:
             state[tail + _PREV_X] = x[j]
             state[tail + _FIRST] = 1.0
         dx = x[j] - state[tail + _PREV_X]
         state[tail + _PREV_X] = x[j]
-        u = abs(v[j]) / vt
-        p = u * u if expo == 2.0 else u**expo
-        level = cv + (1.0 - cv) * math.exp(-p)
+        level = _level(abs(v[j]), scalars)
         if resting[j] == 0.0 and state[tail + _PREV_REST] == 1.0:
             # the motion resumes: every element sticks where it rested, held
             gain = 1.0 + reach * math.log1p(dwell[j] / tau)
@@ -132,6 +129,9 @@ class RaisedLimits:
     def reset(self) -> None:
         """Virgin elements, no standstill seen."""
         self.state = np.zeros(6 * self.k.size + 3)
+        # one sample's inputs (position, velocity, rest flag, dwell) and output, reused
+        self._sample = np.zeros((4, 1))
+        self._out = np.zeros(1)
 
     def run(self, ctx: Context) -> FloatArray:
         """The (scaled) extra force along ``ctx``, continuing from the current state."""
@@ -146,11 +146,19 @@ class RaisedLimits:
         )  # fmt: skip
         return self.scale * out
 
+    def step(self, position_m: float, velocity_m_s: float, resting: float, dwell_s: float) -> float:
+        """One sample of :meth:`run`, on preallocated buffers (a servo cycle's call)."""
+        x, v, rest, dwell = self._sample
+        x[0], v[0], rest[0], dwell[0] = position_m, velocity_m_s, resting, dwell_s
+        _raised_run(self.k, self.w, self.scalars, self.reach, self.tau_s,
+                    x, v, rest, dwell, self.state, self._out)  # fmt: skip
+        return self.scale * float(self._out[0])
 
-def _gms_of(ctx: Context) -> GmsParams:
-    if ctx.gms is None:
-        raise ValueError("dwell_time raises the GMS's own limits: the context needs its GMS")
-    return ctx.gms
+
+def _needs(gms: GmsParams | None, where: str) -> GmsParams:
+    if gms is None:
+        raise ValueError(f"dwell_time raises the GMS's own limits: the {where} needs its GMS")
+    return gms
 
 
 @dataclass(frozen=True)
@@ -169,7 +177,9 @@ class DwellTime(Effect):
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:
         """The raised GMS's extra force at the gain ``reach``, over ``reach``."""
-        raised = RaisedLimits(_gms_of(ctx), shape["tau_s"], shape["reach"], 1 / shape["reach"])
+        raised = RaisedLimits(
+            _needs(ctx.gms, "context"), shape["tau_s"], shape["reach"], 1 / shape["reach"]
+        )
         return raised.run(ctx)[:, None]
 
     @classmethod
@@ -191,9 +201,7 @@ class DwellTime(Effect):
 
     def stream(self, gms: GmsParams | None) -> RaisedLimits:
         """The per-sample form: its elements' state is carried from sample to sample."""
-        if gms is None:
-            raise ValueError("dwell_time raises the GMS's own limits: the stream needs its GMS")
-        return RaisedLimits(gms, self.tau_s, self.reach, self.gamma / self.reach)
+        return RaisedLimits(_needs(gms, "stream"), self.tau_s, self.reach, self.gamma / self.reach)
 
     @classmethod
     def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:

@@ -82,7 +82,8 @@ class ExtensionStream:
         force = gms_force_N
         for effect, stateful in zip(self.extensions, self._stateful, strict=True):
             if stateful is not None:
-                force += float(stateful.run(ctx)[0])
+                force += stateful.step(position_m, velocity_m_s, float(ctx.resting[0]),
+                                       float(ctx.dwell_s[0]))  # fmt: skip
             elif not isinstance(effect, FilterEffect):
                 force = float(effect.apply(ctx, np.array([force]))[0])
         if self._zi is None:  # start at rest at the first value, as the batch filter does
