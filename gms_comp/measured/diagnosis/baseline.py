@@ -36,6 +36,7 @@ from gms_comp.measured.diagnosis.design import (
     GramDesign,
     PartDesign,
     rms,
+    solve_gram,
     train_rms,
 )
 from gms_comp.measured.diagnosis.prepare import Part, Prepared
@@ -71,6 +72,15 @@ REFINE_STEPS = ((0.1, 2.0), (0.05, 1.4), (0.02, 1.15))  # C_v +-, v_t x/ (shrink
 # A limit below SUPPORT_SHARE of the sum does not count as where the limits are.
 COARSE_ELEMENTS = 8
 SUPPORT_SHARE = 0.01
+# Then the break-aways of the elements the grid fit keeps are moved off the grid (free
+# knots): coordinate steps in log(break-away) of these sizes, at most KNOT_ROUNDS rounds
+# each, every trial's limits by NNLS on the training rows, inside the grid's range. A true
+# element between two grid points is otherwise carried by both, and the forces that live
+# at an element's break-away (a dwell's raised limit) by neither: on ten independent
+# traces with a dwell gain the grid's elements correlated 0.41-0.93 with the truth's dwell
+# force, the moved ones 0.49-0.95 (8 of 10 above 0.85); the held-out RMS fell 0.2-8 %.
+KNOT_STEPS = (0.2, 0.1, 0.05)
+KNOT_ROUNDS = 6
 
 
 @dataclass(frozen=True)
@@ -213,6 +223,9 @@ def fit_baseline(prepared: Prepared, cfg: DiagnosisConfig, table: GmsParams | No
     values and the table's calibrated factors."""
     free = _free_basis(prepared, cfg.n_elements)
     designs, theta, _ = _fit(prepared, free)
+    free = refine_knots(prepared, free, theta)
+    free = fit_free(prepared, free.breakaway_m, start=free)
+    designs, theta, _ = _fit(prepared, free)
     free_rms = rms(GramDesign(designs).held_residual(theta))
     info: dict[str, Any] = {"source": "free_nnls", "free_nnls_heldout_rms_N": free_rms}
     basis: Basis = free
@@ -250,6 +263,57 @@ def _free_basis(prepared: Prepared, n_elements: int) -> FreeBasis:
     lo = max(float(coarse[where[0]]) / spacing, float(coarse[0]))
     hi = min(float(coarse[where[-1]]) * spacing, float(coarse[-1]))
     return fit_free(prepared, np.geomspace(lo, hi, n_elements), start=free)
+
+
+def refine_knots(prepared: Prepared, basis: FreeBasis, theta: FloatArray) -> FreeBasis:
+    """``basis`` reduced to the elements with a limit in ``theta`` and their break-aways
+    moved to fit the training rows best (bounded coordinate steps, ``KNOT_STEPS``)."""
+    n = basis.breakaway_m.size
+    knots = basis.breakaway_m[theta[:n] > 0.0].copy()
+    if knots.size == 0:
+        return basis
+    lo, hi = float(basis.breakaway_m[0]), float(basis.breakaway_m[-1])
+    designs = _designs(prepared, FreeBasis(knots, basis.slip_level, basis.transition_velocity_m_s))
+    rows = [np.flatnonzero(p.train) for p in prepared.parts]
+    train_a = [cols.values[r] for (_, cols), r in zip(designs, rows, strict=True)]
+    train_y = [p.force_N[r] for p, r in zip(prepared.parts, rows, strict=True)]
+    lower = designs[0][1].lower
+    gram = sum((a.T @ a for a in train_a), np.zeros((lower.size, lower.size)))
+    rhs = sum((a.T @ y for a, y in zip(train_a, train_y, strict=True)), np.zeros(lower.size))
+
+    def sse(gram: FloatArray, rhs: FloatArray) -> float:
+        c = solve_gram(gram, rhs, lower)
+        return float(c @ gram @ c - 2.0 * c @ rhs)
+
+    def column(d: float) -> list[FloatArray]:
+        one = FreeBasis(np.array([d]), basis.slip_level, basis.transition_velocity_m_s)
+        return [one.columns(p.kin)[r, 0] for p, r in zip(prepared.parts, rows, strict=True)]
+
+    best = sse(gram, rhs)
+    for step in KNOT_STEPS:
+        for _ in range(KNOT_ROUNDS):
+            moved = False
+            for i in range(knots.size):
+                for factor in (np.exp(-step), np.exp(step)):
+                    d = float(np.clip(knots[i] * factor, lo, hi))
+                    if d == knots[i]:
+                        continue
+                    col = column(d)
+                    g2, r2 = gram.copy(), rhs.copy()
+                    g2[i, :] = g2[:, i] = sum(
+                        (a.T @ c for a, c in zip(train_a, col, strict=True)), np.zeros(lower.size)
+                    )
+                    g2[i, i] = sum(float(c @ c) for c in col)
+                    r2[i] = sum(float(c @ y) for c, y in zip(col, train_y, strict=True))
+                    trial = sse(g2, r2)
+                    if trial < best:
+                        best, gram, rhs, knots[i], moved = trial, g2, r2, d, True
+                        for a, c in zip(train_a, col, strict=True):
+                            a[:, i] = c
+            if not moved:
+                break
+    order = np.argsort(knots)
+    return FreeBasis(knots[order], basis.slip_level, basis.transition_velocity_m_s)
 
 
 def _baseline(

@@ -29,7 +29,14 @@ from gms_comp.measured.diagnosis.baseline import (
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, design, effect_of, widths
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import GramDesign, rms, train_rms
-from gms_comp.measured.diagnosis.selection import Selection, admissible, local_search
+from gms_comp.measured.diagnosis.selection import (
+    CONSISTENCY_CONVERGED,
+    CONSISTENCY_STEPS,
+    Selection,
+    admissible,
+    agreement,
+    local_search,
+)
 from gms_comp.runtime import effects as fx
 
 JOINT_REFITS = 3
@@ -156,16 +163,34 @@ def _train_rms(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> float:
 def _refine_shapes(
     parts: Sequence[FittedPart], chosen: list[Option], presliding_m: float
 ) -> list[Option]:
+    """The shapes of ``REFIT_SHAPES`` searched by training RMS, each trial first made to
+    agree with its fitted size (a dwell's ``reach`` with its gain): searched freely, the
+    gain and the time constant trade along a ridge the coordinate steps cannot follow,
+    and the shape moves off the gain its windows are computed at."""
     out = list(chosen)
+    base_width = parts[0].base.values.shape[1]
     for i, opt in enumerate(chosen):
         if opt.effect not in REFIT_SHAPES:
             continue
+        start = base_width + sum(widths(parts, out[:i]))
 
-        def cost(trial: Option, i: int = i) -> float:
-            return _train_rms(parts, [*out[:i], trial, *out[i + 1 :]])
+        def agreed(trial: Option, i: int = i, start: int = start) -> tuple[Option, float]:
+            for _ in range(CONSISTENCY_STEPS):
+                designs = design(parts, [*out[:i], trial, *out[i + 1 :]])
+                theta = GramDesign(designs).fit()
+                width = widths(parts, [trial])[0]
+                shape, factor = agreement(trial, theta[start : start + width])
+                if factor <= CONSISTENCY_CONVERGED:
+                    break
+                trial = Option(trial.effect, shape)
+            return trial, train_rms(designs, theta)
 
+        def cost(trial: Option) -> float:
+            return agreed(trial)[1]
+
+        first, first_cost = agreed(opt)
         bounds = opt.effect.shape_bounds(parts[0].ctx, presliding_m)
-        out[i] = local_search(opt, cost, cost(opt), bounds)[0]
+        out[i] = agreed(local_search(first, cost, first_cost, bounds)[0])[0]
     return out
 
 

@@ -191,10 +191,16 @@ def consistent(scorer: Scorer, trial: Trial) -> bool:
 def _agreement(scorer: Scorer, trial: Trial) -> tuple[dict[str, float], float]:
     """The shape that agrees with ``trial``'s fitted size, and the largest factor
     between it and ``trial``'s (1: they agree; a filter always does)."""
-    shape = dict(trial.option.shape)
-    if trial.option.is_filter:
+    return agreement(trial.option, trial.theta[scorer.theta.size :])
+
+
+def agreement(option: Option, coefficients: FloatArray) -> tuple[dict[str, float], float]:
+    """The shape that agrees with ``option``'s fitted ``coefficients``, and the largest
+    factor between it and ``option``'s shape (1: they agree; a filter always does)."""
+    shape = dict(option.shape)
+    if option.is_filter:
         return shape, 1.0
-    agreed = trial.option.effect.consistent_shape(trial.theta[scorer.theta.size :], shape)
+    agreed = option.effect.consistent_shape(coefficients, shape)
     factors = [
         max(agreed[k] / shape[k], shape[k] / agreed[k]) if agreed[k] * shape[k] > 0 else
         (1.0 if agreed[k] == shape[k] else np.inf)

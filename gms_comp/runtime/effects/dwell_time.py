@@ -39,13 +39,14 @@ TAU_RANGE_S = (1e-4, 1e2)
 # The gains at which the column's windows are computed (G: 0.5 % to 1.5 x the limits).
 REACH_RANGE = (5e-3, 1.5)
 # Each element's raised limit is spread over break-aways within exp(+-SPREAD) of its own,
-# on SPREAD_ELEMENTS sub-elements: a fitted GMS places its limits on a grid (a factor
-# 1.6 apart for the diagnosis's 16), and the extra force of a raised element is a narrow
-# window at its break-away, so a limit a grid cell off put the windows off (correlation
-# with an independent truth's dwell force 0.63-0.93 on five traces; spread over half a
-# cell either side the fitted amplitude came within 5 % of the truth's on four of them).
-SPREAD = 0.25
-SPREAD_ELEMENTS = 9
+# on SPREAD_ELEMENTS sub-elements: the extra force of a raised element is a narrow window
+# at its break-away, so a fitted break-away a little off puts its window off. With the
+# baseline's elements on a grid (a factor 1.6 apart) a spread of +-0.25 was needed; with
+# their break-aways fitted off the grid (baseline.refine_knots) +-0.1 correlates best
+# with an independent truth's dwell force: 0.81-0.93 on nine of ten traces (+-0.25:
+# 0.48-0.91, none: 0.62-0.95).
+SPREAD = 0.1
+SPREAD_ELEMENTS = 5
 # Layout of the state after the 5 element vectors: last position, last rest flag, first.
 _PREV_X, _PREV_REST, _FIRST = range(3)
 
