@@ -108,3 +108,15 @@ def test_uncatalogued_effect_is_unknown(case: str, seed: int, trace_dir: Path) -
 def test_two_effects_are_ranked_larger_first(case: str, seed: int, trace_dir: Path) -> None:
     gen, outcome = diagnosed(case, seed, trace_dir)
     assert pair_in_order(gen, outcome), _describe(gen, outcome)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_dwell_windows_are_computed_at_the_fitted_gain(seed: int, trace_dir: Path) -> None:
+    # the raised limits' windows are those of the gain reported (the shape agrees with
+    # the size, within the fixed point's 10 %), not of a gain the search passed through
+    gen, outcome = diagnosed("dwell_time", seed, trace_dir)
+    params = outcome.result.get("parameters") or {}
+    if outcome.named != "dwell_time":
+        pytest.skip("dwell_time not named (see test_catalogue_effect_is_named_first)")
+    ratio = params["reach"] / params["gamma"]
+    assert 1 / 1.1 <= ratio <= 1.1, _describe(gen, outcome)

@@ -4,7 +4,9 @@ The blind baseline is a free NNLS GMS that carries the seed's velocity dependenc
 sliding level C_v >= 1 above the stick level, reached over a transition velocity v_t
 (../shared/spec/physics.md), fitted jointly with the element limits: for each (C_v, v_t)
 the limits are a non-negative least-squares fit, and (C_v, v_t) are searched on a
-bounded grid and refined by a bounded number of coordinate steps. A trace whose only
+bounded grid and refined by a bounded number of coordinate steps; the elements the
+grid's fit keeps are then moved off the grid (free knots, :func:`refine_knots`) and
+(C_v, v_t) stepped again. A trace whose only
 departure from a GMS is C_v is therefore explained by the baseline (``none``), not
 handed to a catalogue effect. Given a GMS table (from the user's bearing), its level,
 presliding scale and velocity dependence are calibrated instead (:mod:`.basis`), and the
@@ -266,12 +268,14 @@ def _free_basis(prepared: Prepared, n_elements: int) -> FreeBasis:
 
 
 def refine_knots(prepared: Prepared, basis: FreeBasis, theta: FloatArray) -> FreeBasis:
-    """``basis`` reduced to the elements with a limit in ``theta`` and their break-aways
-    moved to fit the training rows best (bounded coordinate steps, ``KNOT_STEPS``)."""
+    """``basis`` with the break-aways of the elements that have a limit in ``theta``
+    moved to fit the training rows best (bounded coordinate steps, ``KNOT_STEPS``). The
+    others stay where they are: with a filter in the design (a sensor low-pass) the fit
+    uses elements the unfiltered one left empty (without them, the low-pass's cut-off
+    came out 6.9 Hz, order 4, for 5.1 Hz, order 3, and a reversal transient beside it)."""
     n = basis.breakaway_m.size
-    knots = basis.breakaway_m[theta[:n] > 0.0].copy()
-    if knots.size == 0:
-        return basis
+    knots = basis.breakaway_m.copy()
+    active = np.flatnonzero(theta[:n] > 0.0)
     lo, hi = float(basis.breakaway_m[0]), float(basis.breakaway_m[-1])
     designs = _designs(prepared, FreeBasis(knots, basis.slip_level, basis.transition_velocity_m_s))
     rows = [np.flatnonzero(p.train) for p in prepared.parts]
@@ -293,7 +297,7 @@ def refine_knots(prepared: Prepared, basis: FreeBasis, theta: FloatArray) -> Fre
     for step in KNOT_STEPS:
         for _ in range(KNOT_ROUNDS):
             moved = False
-            for i in range(knots.size):
+            for i in active:
                 for factor in (np.exp(-step), np.exp(step)):
                     d = float(np.clip(knots[i] * factor, lo, hi))
                     if d == knots[i]:

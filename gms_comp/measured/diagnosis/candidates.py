@@ -123,6 +123,8 @@ class Scorer:
         self.held_residual_N = self.gram.held_residual(self.theta)
         self.heldout_rms_N = rms(self.held_residual_N)
         self._all_held = np.ones(self.held_residual_N.size, dtype=bool)
+        self._swapped: GramDesign | None = None
+        self._swapped_residual = np.zeros(0)
 
     def model(self, index: int = 0) -> FloatArray:
         """The current design's force on part ``index``."""
@@ -138,9 +140,29 @@ class Scorer:
         extra = [opt.columns(fp, self.filters) for fp in self.parts]
         theta, held = self.gram.trial(extra)
         support = np.concatenate(
-            [_acting(e.values[fp.part.held]) for e, fp in zip(extra, self.parts, strict=True)]
+            [where_acting(e.values[fp.part.held]) for e, fp in zip(extra, self.parts, strict=True)]
         )
         return Trial(opt, rms(held), theta, held, support)
+
+    def crossed(self, trial: Trial) -> tuple[FloatArray, FloatArray, BoolArray]:
+        """The other fold of ``trial``'s judgement: the design fitted on the held-out
+        rows, without and with the option, its residuals on the training rows, and the
+        training rows where the option acts (a filter: every row). Pooled with the
+        held-out ones, every event of the trace is judged by a model fitted without it
+        (a dwell effect on a trace with four standstills may have none held out)."""
+        if self._swapped is None:
+            self._swapped = _swapped(self.designs)
+            self._swapped_residual = self._swapped.held_residual(self._swapped.fit())
+        base = self._swapped_residual
+        if trial.option.is_filter:
+            gram = _swapped(design(self.parts, [*self.chosen, trial.option]))
+            return base, gram.held_residual(gram.fit()), np.ones(base.size, dtype=bool)
+        extra = [trial.option.columns(fp, self.filters) for fp in self.parts]
+        _, new = self._swapped.trial(extra)
+        support = np.concatenate(
+            [where_acting(e.values[fp.part.train]) for e, fp in zip(extra, self.parts, strict=True)]
+        )
+        return base, new, support
 
     def change(self, trial: Trial) -> FloatArray:
         """How much ``trial`` changes the model force on the main part."""
@@ -153,7 +175,14 @@ class Scorer:
         return base @ trial.theta[:m] + extra @ trial.theta[m:] - self.model()
 
 
-def _acting(values: FloatArray) -> BoolArray:
+def _swapped(designs: Sequence[PartDesign]) -> GramDesign:
+    """``designs`` fitted on their held-out rows and judged on their training rows."""
+    return GramDesign([PartDesign(d.columns, d.force_N, d.held, d.train) for d in designs])
+
+
+def where_acting(values: FloatArray) -> BoolArray:
+    """The rows where design columns ``values`` act (``SUPPORT_ENERGY``, ``SUPPORT_LEVEL``),
+    each column scaled to its peak."""
     acting = np.zeros(values.shape[0], dtype=bool)
     if values.shape[0] == 0:  # a part without held-out rows (the training trace)
         return acting

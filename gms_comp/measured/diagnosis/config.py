@@ -17,7 +17,8 @@ class DiagnosisConfig:
     # an acceleration).
     filter_cutoff_Hz: float = field(default=0.0, metadata=in_range(0.0, 1e9))
     # Elements of the free GMS, on a dense grid over the break-aways a coarse pass of 8
-    # found (8 or fewer: one pass over the whole range).
+    # found (8 or fewer: one pass over the whole range); the ones the fit keeps are then
+    # moved off the grid to the break-aways that fit best.
     n_elements: int = field(default=16, metadata=in_range(1, 40))
     # Held out: every third of ``n_blocks`` contiguous blocks. Fast moves are a small part
     # of a measured trace: with 10 blocks the held-out part of one independent trace held

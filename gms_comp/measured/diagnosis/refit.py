@@ -35,6 +35,7 @@ from gms_comp.measured.diagnosis.selection import (
     Selection,
     admissible,
     agreement,
+    halfway,
     local_search,
 )
 from gms_comp.runtime import effects as fx
@@ -182,7 +183,7 @@ def _refine_shapes(
                 shape, factor = agreement(trial, theta[start : start + width])
                 if factor <= CONSISTENCY_CONVERGED:
                     break
-                trial = Option(trial.effect, shape)
+                trial = Option(trial.effect, halfway(trial.shape, shape))
             return trial, train_rms(designs, theta)
 
         def cost(trial: Option) -> float:

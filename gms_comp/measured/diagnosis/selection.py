@@ -14,7 +14,7 @@ by ``REFINE_STEPS`` x ``MAX_PASSES`` inside each effect's shape bounds.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,8 +31,11 @@ from gms_comp.runtime import effects as fx
 REFINE_STEPS = (1.3, 1.08)
 MAX_PASSES = 4
 # Fixed-point steps that make a shape agree with the size fitted on it, and how far
-# apart the two may be for the effect to be kept (a factor).
-CONSISTENCY_STEPS = 3
+# apart the two may be for the effect to be kept (a factor). Each step goes halfway (in
+# log) to the shape the size implies: a dwell's fitted gain falls as the gain its
+# windows are computed at rises (slope -0.8 in log near the agreement on one trace), so
+# full steps oscillate about it (three left a factor 1.4); half steps converge in two.
+CONSISTENCY_STEPS = 4
 CONSISTENCY_CONVERGED = 1.1
 CONSISTENT_WITHIN = 1.5
 # Contiguous chunks of held-out samples for the significance of an improvement.
@@ -112,9 +115,13 @@ def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: floa
         and significance(held0, trial.held_residual_N) >= cfg.significance_t
     )
     support = trial.support
-    if not worth and 0 < np.count_nonzero(support) < LOCAL_SHARE * support.size:
-        local0, local1 = held0[support], trial.held_residual_N[support]
-        worth = (
+    if not worth and np.count_nonzero(support) < LOCAL_SHARE * support.size:
+        # judged where it acts on both folds (held out, and training with the fit on the
+        # held-out rows): an effect at a few events may have none or one held out
+        base, new, where = scorer.crossed(trial)
+        local0 = np.concatenate([held0[support], base[where]])
+        local1 = np.concatenate([trial.held_residual_N[support], new[where]])
+        worth = local0.size > 0 and (
             rms(local1) <= (1.0 - cfg.local_margin) * rms(local0)
             and significance(local0, local1) >= cfg.significance_t
         )
@@ -179,8 +186,16 @@ def _consistent(scorer: Scorer, trial: Trial) -> Trial:
         shape, factor = _agreement(scorer, trial)
         if factor <= CONSISTENCY_CONVERGED:
             break
-        trial = scorer.score(Option(trial.option.effect, shape))
+        trial = scorer.score(Option(trial.option.effect, halfway(trial.option.shape, shape)))
     return trial
+
+
+def halfway(shape: Mapping[str, float], agreed: Mapping[str, float]) -> dict[str, float]:
+    """A step from ``shape`` halfway to ``agreed`` (geometric mean of positive values)."""
+    return {
+        k: float(np.sqrt(v * agreed[k])) if v > 0 and agreed[k] > 0 else agreed[k]
+        for k, v in shape.items()
+    }
 
 
 def consistent(scorer: Scorer, trial: Trial) -> bool:

@@ -1,0 +1,52 @@
+"""Where an effect on few samples is judged: its peaks, not a long low tail."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import optimize
+
+from gms_comp.measured.diagnosis.candidates import where_acting
+
+
+def _peaks_with_tails(tail: float) -> tuple[np.ndarray, np.ndarray]:
+    """Ten triangular peaks of height 1 (41 samples each), each followed by a flat tail
+    of ``tail`` over 2000 samples (a raised element that never slipped again)."""
+    peak = 1.0 - np.abs(np.arange(-20, 21)) / 21.0
+    column, in_peak = [], []
+    for _ in range(10):
+        column += [np.zeros(100), peak, np.full(2000, tail)]
+        in_peak += [np.zeros(100, bool), np.ones(peak.size, bool), np.zeros(2000, bool)]
+    return np.concatenate(column)[:, None], np.concatenate(in_peak)
+
+
+def test_a_low_tail_is_not_where_the_effect_acts() -> None:
+    values, in_peak = _peaks_with_tails(0.05)
+    # the tail holds a good part of the energy: by energy alone it would be in
+    tail_share = np.sum(values[~in_peak] ** 2) / np.sum(values**2)
+    assert tail_share > 0.15
+    acting = where_acting(values)
+    assert not acting[~in_peak].any()
+    # the peaks down to a tenth of their height
+    assert np.array_equal(acting[in_peak], values[in_peak, 0] >= 0.1)
+
+
+def test_without_a_tail_the_tops_of_the_peaks() -> None:
+    with_tail, in_peak = _peaks_with_tails(0.05)
+    without, _ = _peaks_with_tails(0.0)
+    acting = where_acting(without)
+    assert not (acting & ~where_acting(with_tail)).any()  # no more than with the tail
+    assert acting[in_peak & (without[:, 0] >= 0.5)].all()
+
+
+def test_a_broad_column_acts_where_it_holds_most_of_its_energy() -> None:
+    # a sine over whole periods holds a share f + sin(pi f) / pi of its energy in the
+    # fraction f of the samples where it is largest; 90 % needs f = 0.596
+    f = optimize.brentq(lambda f: f + np.sin(np.pi * f) / np.pi - 0.9, 0.0, 1.0)
+    values = np.sin(np.linspace(0.0, 200 * np.pi, 20_000, endpoint=False))[:, None]
+    share = np.count_nonzero(where_acting(values)) / values.shape[0]
+    assert abs(share - f) < 0.005
+
+
+def test_no_rows_and_a_zero_column_act_nowhere() -> None:
+    assert where_acting(np.zeros((0, 1))).size == 0
+    assert not where_acting(np.zeros((50, 2))).any()
