@@ -151,11 +151,11 @@ class Scorer:
         held-out ones, every event of the trace is judged by a model fitted without it
         (a dwell effect on a trace with four standstills may have none held out)."""
         if self._swapped is None:
-            self._swapped = _swapped(self.designs)
+            self._swapped = swapped(self.designs)
             self._swapped_residual = self._swapped.held_residual(self._swapped.fit())
         base = self._swapped_residual
         if trial.option.is_filter:
-            gram = _swapped(design(self.parts, [*self.chosen, trial.option]))
+            gram = swapped(design(self.parts, [*self.chosen, trial.option]))
             return base, gram.held_residual(gram.fit()), np.ones(base.size, dtype=bool)
         extra = [trial.option.columns(fp, self.filters) for fp in self.parts]
         _, new = self._swapped.trial(extra)
@@ -175,7 +175,7 @@ class Scorer:
         return base @ trial.theta[:m] + extra @ trial.theta[m:] - self.model()
 
 
-def _swapped(designs: Sequence[PartDesign]) -> GramDesign:
+def swapped(designs: Sequence[PartDesign]) -> GramDesign:
     """``designs`` fitted on their held-out rows and judged on their training rows."""
     return GramDesign([PartDesign(d.columns, d.force_N, d.held, d.train) for d in designs])
 

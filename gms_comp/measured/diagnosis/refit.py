@@ -191,7 +191,8 @@ def _refine_shapes(
 
         first, first_cost = agreed(opt)
         bounds = opt.effect.shape_bounds(parts[0].ctx, presliding_m)
-        out[i] = agreed(local_search(first, cost, first_cost, bounds)[0])[0]
+        fixed = opt.effect.SET_BY_SIZE
+        out[i] = agreed(local_search(first, cost, first_cost, bounds, fixed)[0])[0]
     return out
 
 

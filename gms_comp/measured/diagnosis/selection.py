@@ -60,17 +60,17 @@ class Selection:
 
 def local_search(
     opt: Option, cost: Callable[[Option], float], start_cost: float,
-    bounds: dict[str, tuple[float, float]],
+    bounds: dict[str, tuple[float, float]], fixed: tuple[str, ...] = (),
 ) -> tuple[Option, float]:  # fmt: skip
-    """Bounded local search on ``opt``'s shape parameters (relative steps shrinking from
-    the grids' spacing, each value kept inside ``bounds``, at most ``MAX_PASSES`` passes
-    per step), so that they are not limited to the grid."""
+    """Bounded local search on ``opt``'s shape parameters but ``fixed`` (relative steps
+    shrinking from the grids' spacing, each value kept inside ``bounds``, at most
+    ``MAX_PASSES`` passes per step), so that they are not limited to the grid."""
     best, best_cost = opt, start_cost
     for step in REFINE_STEPS:
         for _ in range(MAX_PASSES):
             improved = False
             for key in opt.shape:
-                if key == "order":
+                if key == "order" or key in fixed:
                     continue
                 lo, hi = bounds.get(key, (0.0, np.inf))
                 for factor in (1.0 / step, step):

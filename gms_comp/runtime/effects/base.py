@@ -46,6 +46,9 @@ class Effect:
 
     name: ClassVar[str]
     SHAPE: ClassVar[tuple[str, ...]] = ()
+    # The shape parameters :meth:`consistent_shape` sets from the size (not searched
+    # where the shape is made to agree with the size).
+    SET_BY_SIZE: ClassVar[tuple[str, ...]] = ()
     # An effect of the measurement chain, not of the contact: a compensator does not add it.
     measurement_only: ClassVar[bool] = False
     # Lower bound of every fitted coefficient (its physical meaning, held inside the fit).

@@ -170,6 +170,7 @@ class DwellTime(Effect):
 
     name: ClassVar[str] = "dwell_time"
     SHAPE: ClassVar[tuple[str, ...]] = ("tau_s", "reach")
+    SET_BY_SIZE: ClassVar[tuple[str, ...]] = ("reach",)
     COEFFICIENT_LOWER: ClassVar[float] = 0.0
     gamma: float
     tau_s: float
