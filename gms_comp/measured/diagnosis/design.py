@@ -99,6 +99,8 @@ class GramDesign:
             (a.T @ y for a, y in zip(self._train_a, self._train_y, strict=True)),
             np.zeros(self.lower.size),
         )
+        self._yy = float(sum(float(y @ y) for y in self._train_y))
+        self._n_train = sum(y.size for y in self._train_y)
         self._held_a = [p.columns.values[p.held] for p in self.parts]
         self._held_y = np.concatenate([p.force_N[p.held] for p in self.parts])
 
@@ -113,6 +115,24 @@ class GramDesign:
     def trial(self, extra: Sequence[Columns]) -> tuple[FloatArray, FloatArray]:
         """Coefficients and held-out residual of this design plus ``extra`` (one
         :class:`Columns` per part), fitted on the training rows."""
+        m = self.lower.size
+        theta = solve_gram(*self._augmented(extra))
+        pred = [
+            a @ theta[:m] + np.take(e.values, rows, axis=0) @ theta[m:]
+            for a, rows, e in zip(self._held_a, self._held_rows, extra, strict=True)
+        ]
+        return theta, self._held_y - np.concatenate(pred)
+
+    def trial_train_rms(self, extra: Sequence[Columns]) -> tuple[FloatArray, float]:
+        """Coefficients and training RMS of this design plus ``extra``, from the Gram
+        matrix alone (no residual over the training rows)."""
+        gram, rhs, lower = self._augmented(extra)
+        theta = solve_gram(gram, rhs, lower)
+        sse = self._yy - 2.0 * float(theta @ rhs) + float(theta @ gram @ theta)
+        return theta, float(np.sqrt(max(sse, 0.0) / max(self._n_train, 1)))
+
+    def _augmented(self, extra: Sequence[Columns]) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The training Gram matrix, right-hand side and bounds with ``extra`` added."""
         m, q = self.lower.size, extra[0].lower.size
         cross = np.zeros((m, q))
         inner = np.zeros((q, q))
@@ -125,14 +145,8 @@ class GramDesign:
             inner += b.T @ b
             rhs += b.T @ y
         gram = np.block([[self.gram, cross], [cross.T, inner]])
-        theta = solve_gram(
-            gram, np.concatenate([self.rhs, rhs]), np.concatenate([self.lower, extra[0].lower])
-        )
-        pred = [
-            a @ theta[:m] + np.take(e.values, rows, axis=0) @ theta[m:]
-            for a, rows, e in zip(self._held_a, self._held_rows, extra, strict=True)
-        ]
-        return theta, self._held_y - np.concatenate(pred)
+        return (gram, np.concatenate([self.rhs, rhs]),
+                np.concatenate([self.lower, extra[0].lower]))  # fmt: skip
 
 
 def train_rms(parts: Sequence[PartDesign], theta: FloatArray) -> float:

@@ -169,22 +169,24 @@ def _refine_shapes(
     gain and the time constant trade along a ridge the coordinate steps cannot follow,
     and the shape moves off the gain its windows are computed at."""
     out = list(chosen)
-    base_width = parts[0].base.values.shape[1]
     for i, opt in enumerate(chosen):
         if opt.effect not in REFIT_SHAPES:
             continue
-        start = base_width + sum(widths(parts, out[:i]))
+        others = [*out[:i], *out[i + 1 :]]
+        rest = GramDesign(design(parts, others))  # the trials add their columns to it
+        filters = [o for o in others if o.is_filter]
 
-        def agreed(trial: Option, i: int = i, start: int = start) -> tuple[Option, float]:
+        def agreed(
+            trial: Option, rest: GramDesign = rest, filters: list[Option] = filters
+        ) -> tuple[Option, float]:
             for _ in range(CONSISTENCY_STEPS):
-                designs = design(parts, [*out[:i], trial, *out[i + 1 :]])
-                theta = GramDesign(designs).fit()
-                width = widths(parts, [trial])[0]
-                shape, factor = agreement(trial, theta[start : start + width])
+                extra = [trial.columns(fp, filters) for fp in parts]
+                theta, value = rest.trial_train_rms(extra)
+                shape, factor = agreement(trial, theta[rest.lower.size :])
                 if factor <= CONSISTENCY_CONVERGED:
                     break
                 trial = Option(trial.effect, halfway(trial.shape, shape))
-            return trial, train_rms(designs, theta)
+            return trial, value
 
         def cost(trial: Option) -> float:
             return agreed(trial)[1]
