@@ -38,7 +38,7 @@ from gms_comp.measured.diagnosis.design import (
     GramDesign,
     PartDesign,
     rms,
-    solve_gram,
+    solve_gram_sse,
     train_rms,
 )
 from gms_comp.measured.diagnosis.prepare import Part, Prepared
@@ -286,8 +286,7 @@ def refine_knots(prepared: Prepared, basis: FreeBasis, theta: FloatArray) -> Fre
     rhs = sum((a.T @ y for a, y in zip(train_a, train_y, strict=True)), np.zeros(lower.size))
 
     def sse(gram: FloatArray, rhs: FloatArray) -> float:
-        c = solve_gram(gram, rhs, lower)
-        return float(c @ gram @ c - 2.0 * c @ rhs)
+        return solve_gram_sse(gram, rhs, lower)[1]
 
     def column(d: float) -> list[FloatArray]:
         one = FreeBasis(np.array([d]), basis.slip_level, basis.transition_velocity_m_s)

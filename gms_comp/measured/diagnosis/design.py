@@ -66,6 +66,15 @@ def solve_gram(gram: FloatArray, rhs: FloatArray, lower: FloatArray) -> FloatArr
     return np.asarray(c * scale, dtype=np.float64)
 
 
+def solve_gram_sse(
+    gram: FloatArray, rhs: FloatArray, lower: FloatArray
+) -> tuple[FloatArray, float]:
+    """:func:`solve_gram`'s coefficients c and the squared residual they leave, less the
+    constant y'y: c'Gc - 2 c'g."""
+    c = solve_gram(gram, rhs, lower)
+    return c, float(c @ gram @ c) - 2.0 * float(c @ rhs)
+
+
 @dataclass(frozen=True)
 class PartDesign:
     """One trace's design and force with its training and held-out rows."""
@@ -126,10 +135,8 @@ class GramDesign:
     def trial_train_rms(self, extra: Sequence[Columns]) -> tuple[FloatArray, float]:
         """Coefficients and training RMS of this design plus ``extra``, from the Gram
         matrix alone (no residual over the training rows)."""
-        gram, rhs, lower = self._augmented(extra)
-        theta = solve_gram(gram, rhs, lower)
-        sse = self._yy - 2.0 * float(theta @ rhs) + float(theta @ gram @ theta)
-        return theta, float(np.sqrt(max(sse, 0.0) / max(self._n_train, 1)))
+        theta, sse = solve_gram_sse(*self._augmented(extra))
+        return theta, float(np.sqrt(max(self._yy + sse, 0.0) / max(self._n_train, 1)))
 
     def _augmented(self, extra: Sequence[Columns]) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The training Gram matrix, right-hand side and bounds with ``extra`` added."""
