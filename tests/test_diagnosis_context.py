@@ -10,6 +10,8 @@ date the dwell as the truth does, or no dwell column can see them.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 from indepfriction import friction
@@ -19,8 +21,10 @@ from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.prepare import prepare
 from gms_comp.measured.traces import Trace
 from gms_comp.runtime import effects as fx
+from gms_comp.runtime.effects.path import REST_HOLD_S
 
 
+@functools.cache
 def _context(seed: int, cfg: DiagnosisConfig) -> tuple[fx.Context, np.ndarray, np.ndarray]:
     gen = make_trace("dwell_time", seed)
     truth = baseline(seed)[0]
@@ -45,14 +49,28 @@ def _context(seed: int, cfg: DiagnosisConfig) -> tuple[fx.Context, np.ndarray, n
 
 
 # seed 103: after a rest of 0.97 s the truth creeps 2.5 um forward at up to 7 um/s (below
-# any standstill speed) and turns back without stopping; the context dates that start's
-# dwell from the creep's end (25 ms), the truth from the rest before it. With the dwell
-# gains sized at 10-30 % of the level, the raised elements that did not slip in the creep
-# put 16 % of the dwell force's energy there (83 % dated within 5 %).
-CREEP = pytest.mark.xfail(strict=True, reason="a creep slower than the standstill speed")
+# any standstill speed) and turns back without stopping; until the turnaround rule
+# (path.TURN_FACTOR) the context dated a rest at that slow turnaround and the start's dwell
+# from it (25 ms), the truth from the rest before it (16 % of the dwell force's energy
+# misdated). Two seeds still fail, for reasons no rest rule can mend:
+SLOW_START = pytest.mark.xfail(
+    strict=True,
+    reason="seed 106: a start so slow (0.01 um/s at the truth's first moving sample) that "
+    "the position leaves the 2.4 nm band 15 ms later: the 109 ms dwell is measured 125 ms "
+    "(95 % of the energy 14 % off)",
+)
+COARSE_ENCODER = pytest.mark.xfail(
+    strict=True,
+    reason="seed 107: a 39 nm encoder; the truth moves 37 ms before the position leaves "
+    "the 58 nm band, and its elements stretch in that time (11 % of the energy)",
+)
 
 
-@pytest.mark.parametrize("seed", [101, 102, pytest.param(103, marks=CREEP)])
+@pytest.mark.parametrize(
+    "seed",
+    [101, 102, 103, 104, 105, pytest.param(106, marks=SLOW_START),
+     pytest.param(107, marks=COARSE_ENCODER), 108, 109, 110],
+)  # fmt: skip
 def test_the_dwell_force_falls_where_the_context_is_moving_with_the_true_dwell(
     seed: int,
 ) -> None:
@@ -73,3 +91,20 @@ def test_a_speed_threshold_alone_misses_the_dwell_force() -> None:
     ctx, extra, _ = _context(101, DiagnosisConfig(rest_band_steps=0.0))
     energy = extra**2
     assert energy[ctx.resting == 0.0].sum() < 0.3 * energy.sum()
+
+
+@pytest.mark.parametrize("seed", range(101, 111))
+def test_no_rest_is_dated_where_the_truth_does_not_stop(seed: int) -> None:
+    # micrometre reversals hold the position within the band for 20-60 ms at each slow
+    # turnaround (the truth's velocity only crosses zero): before the turnaround rule the
+    # context dated 2-20 such rests on seeds 103, 104, 106, 107 and 110
+    gen = make_trace("dwell_time", seed)
+    ctx, _, _ = _context(seed, DiagnosisConfig())
+    moving = baseline(seed)[0].velocity_m_s != 0.0
+    true_starts = gen.time_s[np.flatnonzero(moving[1:] & ~moving[:-1]) + 1]
+    ours = np.flatnonzero((ctx.resting[1:] == 0.0) & (ctx.resting[:-1] == 1.0)) + 1
+    # a rest held for REST_HOLD_S or more (shorter ones: a fast reversal below the
+    # standstill speed for a sample or two, whose dwell is too short to raise a limit)
+    held = ours[ctx.dwell_s[ours] >= REST_HOLD_S]
+    far = [t for t in gen.time_s[held] if np.min(np.abs(true_starts - t)) > 0.1]
+    assert far == []

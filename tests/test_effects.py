@@ -96,6 +96,25 @@ def test_slow_break_away_is_dated_by_the_rest_band_not_the_speed() -> None:
     assert np.count_nonzero(effect.basis(band_ctx, effect.shape())[first_step:late]) > 10
 
 
+def test_a_slow_turnaround_is_not_a_rest_but_a_stop_there_is() -> None:
+    # 1 um reversals at 1 Hz through a 5 nm encoder: at each turnaround the position
+    # stays within the 7.5 nm band for 2 sqrt(2 x 7.5 nm / (A w^2)) = 39 ms (> 20 ms),
+    # yet the axis never stops; after three cycles it holds 0.1 s at the top and goes on
+    dt, step, amplitude, omega = 1e-3, 5e-9, 1e-6, 2 * np.pi
+    cycles = amplitude * np.cos(omega * np.arange(3000) * dt)
+    x = np.concatenate([cycles, np.full(100, amplitude), cycles[1:1000]])
+    x = np.round(x / step) * step
+    t = np.arange(x.size) * dt
+    v = np.gradient(x, t)
+    ctx = fx.Context.along(t, x, v, 0 * t, 0 * t, 5e-4, rest_band_m=1.5 * step)
+    starts = np.flatnonzero((ctx.resting[1:] == 0.0) & (ctx.resting[:-1] == 1.0)) + 1
+    # the record's own first rest (it began at rest), then the stop: no turnaround
+    assert starts.size == 2
+    assert t[starts[1]] == pytest.approx(3.1, abs=0.03)
+    # the dwell: at least the hold, at most the hold and the 39 ms within the band at the top
+    assert 0.1 <= ctx.dwell_s[starts[1]] <= 0.1 + 0.039
+
+
 def test_settling_after_a_stop_is_not_a_start() -> None:
     # a stop that creeps by a few encoder steps over 10 ms, then rests 0.5 s: one rest
     dt, step = 1e-3, 5e-9
