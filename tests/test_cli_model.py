@@ -218,3 +218,22 @@ def test_bench_json_is_stdout_only(capsys: pytest.CaptureFixture[str]) -> None:
     data = json.loads(captured.out)["gms"]
     assert data["batch_samples_per_s"] > 0 and data["elements"] == 16
     assert captured.err.startswith("measuring")  # progress on stderr
+
+
+def test_a_subcommand_loads_its_own_module_only() -> None:
+    """``gms-comp diagnose`` does not import the simulator, the CAN stack or the other
+    commands (the whole set costs a second more at every start); the bare ``--help``
+    still lists every command."""
+    probe = (
+        "import sys\nfrom gms_comp.app.cli import main\n"
+        "try:\n    main(['diagnose', '--help'])\nexcept SystemExit:\n    pass\n"
+        "print([m for m in ('sim.plant', 'firmware_bridge.settings', "
+        "'gms_comp.app.commands.simulate', 'gms_comp.app.commands.config') if m in sys.modules])"
+    )
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, cwd=ROOT)
+    assert done.stdout.strip().splitlines()[-1] == "[]", done.stdout
+    top = subprocess.run(
+        [sys.executable, "-m", "gms_comp", "--help"], capture_output=True, text=True, cwd=ROOT
+    )
+    for name in ("model", "config", "diagnose", "demo-trace", "simulate", "replay", "bench"):
+        assert name in top.stdout
