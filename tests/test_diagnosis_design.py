@@ -39,3 +39,25 @@ def test_trial_matches_a_bounded_least_squares_of_the_whole_design() -> None:
         assert np.allclose(held, p.force_N[p.held] - full[p.held] @ expected, atol=1e-8)
         residual = p.force_N[p.train] - full[p.train] @ expected
         assert abs(train_rms - np.sqrt(np.mean(residual**2))) < 1e-9
+
+
+def test_a_replaced_column_equals_the_design_built_with_it() -> None:
+    parts, _, _ = _problem(5)
+    p = parts[0]
+    new = np.random.default_rng(9).normal(size=p.force_N.size)
+    gram = GramDesign(parts)
+    g2, r2 = gram.column_replaced(2, [new])
+    values = p.columns.values.copy()
+    values[:, 2] = new
+    rebuilt = GramDesign([PartDesign(Columns(values, p.columns.lower), p.force_N, p.train, p.held)])
+    assert np.allclose(g2, rebuilt.gram) and np.allclose(r2, rebuilt.rhs)
+    assert not np.allclose(gram.gram, rebuilt.gram)  # only a trial: the design is unchanged
+    gram.replace_column(2, [new])
+    theta = rebuilt.fit()
+    assert np.allclose(gram.fit(), theta)
+    assert np.allclose(gram.held_residual(theta), rebuilt.held_residual(theta))
+    # and it fits what a bounded least squares of the rebuilt design gives
+    expected = optimize.lsq_linear(
+        values[p.train], p.force_N[p.train], bounds=(p.columns.lower, np.inf)
+    ).x
+    assert np.allclose(theta, expected, atol=1e-8)

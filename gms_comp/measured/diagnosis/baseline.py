@@ -147,13 +147,17 @@ def _designs(
     return out
 
 
-def _fit(
-    prepared: Prepared, basis: Basis, nuisance: bool = False
-) -> tuple[list[PartDesign], FloatArray, float]:
-    designs = [
+def _part_designs(prepared: Prepared, basis: Basis, nuisance: bool = False) -> list[PartDesign]:
+    return [
         PartDesign(cols, p.force_N, p.train, p.held)
         for p, (_, cols) in zip(prepared.parts, _designs(prepared, basis, nuisance), strict=True)
     ]
+
+
+def _fit(
+    prepared: Prepared, basis: Basis, nuisance: bool = False
+) -> tuple[list[PartDesign], FloatArray, float]:
+    designs = _part_designs(prepared, basis, nuisance)
     gram = GramDesign(designs)
     theta = gram.fit()
     return designs, theta, train_rms(designs, theta)
@@ -275,24 +279,16 @@ def refine_knots(prepared: Prepared, basis: FreeBasis, theta: FloatArray) -> Fre
     came out 6.9 Hz, order 4, for 5.1 Hz, order 3, and a reversal transient beside it)."""
     n = basis.breakaway_m.size
     knots = basis.breakaway_m.copy()
-    active = np.flatnonzero(theta[:n] > 0.0)
+    active = [int(i) for i in np.flatnonzero(theta[:n] > 0.0)]
     lo, hi = float(basis.breakaway_m[0]), float(basis.breakaway_m[-1])
-    designs = _designs(prepared, FreeBasis(knots, basis.slip_level, basis.transition_velocity_m_s))
-    rows = [np.flatnonzero(p.train) for p in prepared.parts]
-    train_a = [cols.values[r] for (_, cols), r in zip(designs, rows, strict=True)]
-    train_y = [p.force_N[r] for p, r in zip(prepared.parts, rows, strict=True)]
-    lower = designs[0][1].lower
-    gram = sum((a.T @ a for a in train_a), np.zeros((lower.size, lower.size)))
-    rhs = sum((a.T @ y for a, y in zip(train_a, train_y, strict=True)), np.zeros(lower.size))
-
-    def sse(gram: FloatArray, rhs: FloatArray) -> float:
-        return solve_gram_sse(gram, rhs, lower)[1]
+    start = FreeBasis(knots, basis.slip_level, basis.transition_velocity_m_s)
+    gram = GramDesign(_part_designs(prepared, start))
 
     def column(d: float) -> list[FloatArray]:
         one = FreeBasis(np.array([d]), basis.slip_level, basis.transition_velocity_m_s)
-        return [one.columns(p.kin)[r, 0] for p, r in zip(prepared.parts, rows, strict=True)]
+        return [one.columns(p.kin)[:, 0] for p in prepared.parts]
 
-    best = sse(gram, rhs)
+    best = solve_gram_sse(gram.gram, gram.rhs, gram.lower)[1]
     for step in KNOT_STEPS:
         for _ in range(KNOT_ROUNDS):
             moved = False
@@ -302,17 +298,10 @@ def refine_knots(prepared: Prepared, basis: FreeBasis, theta: FloatArray) -> Fre
                     if d == knots[i]:
                         continue
                     col = column(d)
-                    g2, r2 = gram.copy(), rhs.copy()
-                    g2[i, :] = g2[:, i] = sum(
-                        (a.T @ c for a, c in zip(train_a, col, strict=True)), np.zeros(lower.size)
-                    )
-                    g2[i, i] = sum(float(c @ c) for c in col)
-                    r2[i] = sum(float(c @ y) for c, y in zip(col, train_y, strict=True))
-                    trial = sse(g2, r2)
+                    trial = solve_gram_sse(*gram.column_replaced(i, col), gram.lower)[1]
                     if trial < best:
-                        best, gram, rhs, knots[i], moved = trial, g2, r2, d, True
-                        for a, c in zip(train_a, col, strict=True):
-                            a[:, i] = c
+                        best, knots[i], moved = trial, d, True
+                        gram.replace_column(i, col)
             if not moved:
                 break
     order = np.argsort(knots)

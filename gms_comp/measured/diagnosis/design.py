@@ -138,6 +138,28 @@ class GramDesign:
         theta, sse = solve_gram_sse(*self._augmented(extra))
         return theta, float(np.sqrt(max(self._yy + sse, 0.0) / max(self._n_train, 1)))
 
+    def column_replaced(
+        self, i: int, values: Sequence[FloatArray]
+    ) -> tuple[FloatArray, FloatArray]:
+        """The training Gram matrix and right-hand side with column ``i`` replaced by
+        ``values`` (one full-length column per part), for :func:`solve_gram_sse`."""
+        train = [np.take(v, rows) for v, rows in zip(values, self._train_rows, strict=True)]
+        gram, rhs = self.gram.copy(), self.rhs.copy()
+        gram[i, :] = gram[:, i] = sum(
+            (a.T @ c for a, c in zip(self._train_a, train, strict=True)),
+            np.zeros(self.lower.size),
+        )
+        gram[i, i] = sum(float(c @ c) for c in train)
+        rhs[i] = sum(float(c @ y) for c, y in zip(train, self._train_y, strict=True))
+        return gram, rhs
+
+    def replace_column(self, i: int, values: Sequence[FloatArray]) -> None:
+        """Replace column ``i`` by ``values`` (one full-length column per part) in place."""
+        self.gram, self.rhs = self.column_replaced(i, values)
+        for part, v in enumerate(values):
+            self._train_a[part][:, i] = v[self._train_rows[part]]
+            self._held_a[part][:, i] = v[self._held_rows[part]]
+
     def _augmented(self, extra: Sequence[Columns]) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The training Gram matrix, right-hand side and bounds with ``extra`` added."""
         m, q = self.lower.size, extra[0].lower.size
