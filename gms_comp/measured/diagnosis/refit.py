@@ -29,15 +29,7 @@ from gms_comp.measured.diagnosis.baseline import (
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, design, effect_of, widths
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import GramDesign, rms, train_rms
-from gms_comp.measured.diagnosis.selection import (
-    CONSISTENCY_CONVERGED,
-    CONSISTENCY_STEPS,
-    Selection,
-    admissible,
-    agreement,
-    halfway,
-    local_search,
-)
+from gms_comp.measured.diagnosis.selection import Selection, admissible, agreed, local_search
 from gms_comp.runtime import effects as fx
 
 JOINT_REFITS = 3
@@ -170,32 +162,29 @@ def _refine_shapes(
     and the shape moves off the gain its windows are computed at."""
     out = list(chosen)
     for i, opt in enumerate(chosen):
-        if opt.effect not in REFIT_SHAPES:
-            continue
-        others = [*out[:i], *out[i + 1 :]]
-        rest = GramDesign(design(parts, others))  # the trials add their columns to it
-        filters = [o for o in others if o.is_filter]
-
-        def agreed(
-            trial: Option, rest: GramDesign = rest, filters: list[Option] = filters
-        ) -> tuple[Option, float]:
-            for _ in range(CONSISTENCY_STEPS):
-                extra = [trial.columns(fp, filters) for fp in parts]
-                theta, value = rest.trial_train_rms(extra)
-                shape, factor = agreement(trial, theta[rest.lower.size :])
-                if factor <= CONSISTENCY_CONVERGED:
-                    break
-                trial = Option(trial.effect, halfway(trial.shape, shape))
-            return trial, value
-
-        def cost(trial: Option) -> float:
-            return agreed(trial)[1]
-
-        first, first_cost = agreed(opt)
-        bounds = opt.effect.shape_bounds(parts[0].ctx, presliding_m)
-        fixed = opt.effect.SET_BY_SIZE
-        out[i] = agreed(local_search(first, cost, first_cost, bounds, fixed)[0])[0]
+        if opt.effect in REFIT_SHAPES:
+            out[i] = _refine_shape(parts, [*out[:i], *out[i + 1 :]], opt, presliding_m)
     return out
+
+
+def _refine_shape(
+    parts: Sequence[FittedPart], others: list[Option], opt: Option, presliding_m: float
+) -> Option:
+    """``opt``'s shape searched with the ``others`` fixed (see :func:`_refine_shapes`)."""
+    rest = GramDesign(design(parts, others))  # the trials add their columns to it
+    filters = [o for o in others if o.is_filter]
+    m = rest.lower.size
+
+    def fit(trial: Option) -> tuple[Option, FloatArray, float]:
+        return (trial, *rest.trial_train_rms([trial.columns(fp, filters) for fp in parts]))
+
+    def settled(trial: Option) -> tuple[Option, FloatArray, float]:
+        return agreed(fit(trial), lambda f: f[0], lambda f: f[1][m:], fit)
+
+    first, _, first_cost = settled(opt)
+    bounds = opt.effect.shape_bounds(parts[0].ctx, presliding_m)
+    best = local_search(first, lambda t: settled(t)[2], first_cost, bounds, opt.effect.SET_BY_SIZE)
+    return settled(best[0])[0]
 
 
 def _run(fp: FittedPart, gms: GmsParams, extensions: Sequence[fx.Effect]) -> FloatArray:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -179,15 +180,31 @@ def _refine(scorer: Scorer, best: Trial, presliding_m: float) -> Trial:
 
 
 def _consistent(scorer: Scorer, trial: Trial) -> Trial:
-    """``trial`` with its shape made to agree with its fitted size (at most
-    ``CONSISTENCY_STEPS`` fixed-point steps of the effect's own rule,
-    :meth:`~gms_comp.runtime.effects.Effect.consistent_shape`)."""
+    """``trial`` with its shape made to agree with its fitted size (:func:`agreed`)."""
+    m = scorer.theta.size
+    return agreed(trial, lambda t: t.option, lambda t: t.theta[m:], scorer.score)
+
+
+Fitted = TypeVar("Fitted")
+
+
+def agreed(
+    first: Fitted, option: Callable[[Fitted], Option],
+    coefficients: Callable[[Fitted], FloatArray], fit: Callable[[Option], Fitted],
+) -> Fitted:  # fmt: skip
+    """``first`` (an option fitted) with its shape made to agree with its fitted size: at
+    most ``CONSISTENCY_STEPS`` half steps towards the shape of the effect's own rule
+    (:meth:`~gms_comp.runtime.effects.Effect.consistent_shape`), each one fitted by
+    ``fit``; ``option`` and ``coefficients`` read a fit's option and its own
+    coefficients. Returns the last fit."""
+    current = first
     for _ in range(CONSISTENCY_STEPS):
-        shape, factor = _agreement(scorer, trial)
+        opt = option(current)
+        shape, factor = agreement(opt, coefficients(current))
         if factor <= CONSISTENCY_CONVERGED:
             break
-        trial = scorer.score(Option(trial.option.effect, halfway(trial.option.shape, shape)))
-    return trial
+        current = fit(Option(opt.effect, halfway(opt.shape, shape)))
+    return current
 
 
 def halfway(shape: Mapping[str, float], agreed: Mapping[str, float]) -> dict[str, float]:
