@@ -304,10 +304,11 @@ def refine_knots(prepared: Prepared, basis: FreeBasis, theta: FloatArray) -> Fre
                     if d == knots[i]:
                         continue
                     col = column(d)
-                    trial = solve_gram_sse(*gram.column_replaced(i, col), gram.lower)[1]
+                    replaced = gram.column_replaced(i, col)
+                    trial = solve_gram_sse(*replaced, gram.lower)[1]
                     if trial < best:
                         best, knots[i], moved = trial, d, True
-                        gram.replace_column(i, col)
+                        gram.replace_column(i, col, replaced)
             if not moved:
                 break
     order = np.argsort(knots)

@@ -153,9 +153,13 @@ class GramDesign:
         rhs[i] = sum(float(c @ y) for c, y in zip(train, self._train_y, strict=True))
         return gram, rhs
 
-    def replace_column(self, i: int, values: Sequence[FloatArray]) -> None:
-        """Replace column ``i`` by ``values`` (one full-length column per part) in place."""
-        self.gram, self.rhs = self.column_replaced(i, values)
+    def replace_column(
+        self, i: int, values: Sequence[FloatArray],
+        replaced: tuple[FloatArray, FloatArray] | None = None,
+    ) -> None:  # fmt: skip
+        """Replace column ``i`` by ``values`` (one full-length column per part) in place;
+        ``replaced``: :meth:`column_replaced`'s result for them, if already at hand."""
+        self.gram, self.rhs = replaced or self.column_replaced(i, values)
         for part, v in enumerate(values):
             self._train_a[part][:, i] = v[self._train_rows[part]]
             self._held_a[part][:, i] = v[self._held_rows[part]]

@@ -34,6 +34,9 @@ REST_HOLD_S = 0.02
 # its last crossing; at a stop for far longer. On that generator's ten dwell traces 5 left
 # one false rest, 7 none, and every one of its 202 real rests kept its date and length.
 TURN_FACTOR = 7.0
+# While resting, a move of this share of the band is an encoder step (half a step at the
+# diagnosis's default band of 1.5 steps): a slow start is dated from its first one.
+STEP_SHARE = 1.0 / 3.0
 
 # Layout of the path-state vector.
 (_FIRST, _PREV_X, _CUM, _DIR, _CUM_AT_REVERSAL, _STILL, _STILL_SINCE, _DWELL, _CUM_AT_RESUME,
@@ -75,8 +78,10 @@ def _start(state: FloatArray, x: float, began: float) -> None:
 
 
 @numba.njit(cache=True)
-def _rested(state: FloatArray, t: float, x: float) -> None:
-    """A rest from ``t`` at ``x`` (no step off it yet)."""
+def _rested(state: FloatArray, t: float, anchor: float, x: float) -> None:
+    """A rest from ``t`` around ``anchor``, the position now ``x`` (no step off it yet)."""
+    state[_REST] = 1.0
+    state[_ANCHOR] = anchor
     state[_STILL_SINCE] = t
     state[_STEP_X] = x
     state[_STEP_T] = t
@@ -102,26 +107,21 @@ def _rest_step(state: FloatArray, t: float, x: float, still: bool, band: float) 
             _start(state, x, t)
         elif band > 0.0 and abs(x - state[_ANCHOR]) > band:
             if t - state[_STILL_SINCE] < REST_HOLD_S:  # still settling: rest from here
-                state[_ANCHOR] = x
-                _rested(state, t, x)
+                _rested(state, t, x, x)
             else:
                 # a slow start leaves the band a step after it began: dated from that
                 # step if it went the same way shortly before (not the stop's settling)
                 first = state[_STEP_DIR] * (x - state[_ANCHOR]) > 0.0
                 first = first and t - state[_STEP_T] < REST_HOLD_S
                 _start(state, x, state[_STEP_T] if first else t)
-        elif band > 0.0 and abs(x - state[_STEP_X]) > band / 3.0:  # a step (the band: 1.5)
+        elif band > 0.0 and abs(x - state[_STEP_X]) > STEP_SHARE * band:  # an encoder step
             state[_STEP_DIR] = 1.0 if x > state[_STEP_X] else -1.0
             state[_STEP_X] = x
             state[_STEP_T] = t
     elif still and not was_still:
-        state[_REST] = 1.0
-        state[_ANCHOR] = x
-        _rested(state, t, x)
+        _rested(state, t, x, x)
     elif band > 0.0 and t - state[_CAND_T] >= max(REST_HOLD_S, TURN_FACTOR * state[_CROSS]):
-        state[_REST] = 1.0
-        state[_ANCHOR] = state[_CAND_X]
-        _rested(state, state[_CAND_T], x)
+        _rested(state, state[_CAND_T], state[_CAND_X], x)
 
 
 @numba.njit(cache=True)
