@@ -10,3 +10,6 @@ FloatArray = NDArray[np.float64]
 
 BoolArray = NDArray[np.bool_]
 """A boolean mask over samples."""
+
+IntArray = NDArray[np.intp]
+"""Indices of samples."""

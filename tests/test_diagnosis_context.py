@@ -18,7 +18,8 @@ from indepfriction import friction
 from indepgen import baseline, make_trace
 
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
-from gms_comp.measured.diagnosis.prepare import prepare
+from gms_comp.measured.diagnosis.motion import kinematics
+from gms_comp.measured.diagnosis.prepare import held_third, prepare
 from gms_comp.measured.traces import Trace
 from gms_comp.runtime import effects as fx
 from gms_comp.runtime.effects.path import REST_HOLD_S
@@ -108,3 +109,50 @@ def test_no_rest_is_dated_where_the_truth_does_not_stop(seed: int) -> None:
     held = ours[ctx.dwell_s[ours] >= REST_HOLD_S]
     far = [t for t in gen.time_s[held] if np.min(np.abs(true_starts - t)) > 0.1]
     assert far == []
+
+
+def _truth_starts(seed: int) -> np.ndarray:
+    """The samples where the independent truth starts after a standstill of at least
+    ``REST_HOLD_S`` (its velocity exactly zero)."""
+    truth = baseline(seed)[0]
+    still = np.concatenate([[False], truth.velocity_m_s == 0.0, [False]])
+    edges = np.flatnonzero(np.diff(still.astype(int)))
+    begin, end = edges[0::2], edges[1::2]
+    dt = float(truth.time_s[1] - truth.time_s[0])
+    long = (end - begin) * dt >= REST_HOLD_S
+    return end[long & (end < truth.time_s.size)]
+
+
+@pytest.mark.parametrize("seed", range(101, 111))
+def test_both_parts_hold_starts_after_a_standstill(seed: int) -> None:
+    """A dwell effect acts only where the axis starts after a standstill: the held-out
+    rows hold some of the truth's starts, and so do the training rows (on two of these
+    traces every third block from the second held none)."""
+    gen = make_trace("dwell_time", seed)
+    part = prepare(Trace("indep", gen.time_s, gen.position_m, gen.force_N), "friction",
+                   None, DiagnosisConfig()).main  # fmt: skip
+    starts = _truth_starts(seed)
+    assert starts.size >= 3
+    assert np.any(part.held[starts]) and np.any(part.train[starts])
+
+
+def test_the_held_third_follows_the_starts() -> None:
+    """Starts only in the first and last thirds of the blocks: the last third (nearest a
+    third of them) is held out; spread over all three, or none at all: the second."""
+    dt, blocks = 1e-3, 60
+    t = np.arange(blocks * 1000) * dt
+    third = (np.arange(t.size) * blocks // t.size) % 3
+
+    def held(start_blocks: list[int]) -> int:
+        x = np.zeros_like(t)
+        for k, b in enumerate(start_blocks):  # a 1 mm move of 0.2 s from mid-block
+            s = np.clip((t - b - 0.5) / 0.2, 0.0, 1.0)
+            x += (1.0 if k % 2 == 0 else -1.0) * 1e-3 * s * s * (3.0 - 2.0 * s)
+        x = np.round(x / 1e-8) * 1e-8
+        kin = kinematics(Trace("synthetic", t, x, np.ones_like(t)), 0.45 / dt)
+        still = 0.01 * float(np.max(np.abs(kin.velocity_m_s)))
+        return held_third(third, kin, still, 0.6e-8, 1.5e-8)
+
+    assert held([0, 3, 6, 9, 12, 15, 18, 21, 2, 5, 8, 11]) == 2  # 8 / 0 / 4 per third
+    assert held([0, 4, 8, 12, 16, 20, 24, 28, 32]) == 1  # 3 / 3 / 3
+    assert held([]) == 1

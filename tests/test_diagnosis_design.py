@@ -61,3 +61,57 @@ def test_a_replaced_column_equals_the_design_built_with_it() -> None:
         values[p.train], p.force_N[p.train], bounds=(p.columns.lower, np.inf)
     ).x
     assert np.allclose(theta, expected, atol=1e-8)
+
+
+def _events(n: int, rng: np.random.Generator, count: int) -> list[np.ndarray]:
+    starts = np.sort(rng.choice(np.arange(0, n - 40, 60), size=count, replace=False))
+    return [np.arange(s, s + int(rng.integers(5, 40))) for s in starts]
+
+
+def test_left_out_residuals_are_a_bounded_fit_without_each_fold() -> None:
+    """Every event's residuals come from a bounded least squares of the whole design on
+    the training rows less its fold's events (scipy's, from scratch)."""
+    for seed, folds in ((0, 3), (1, 10), (2, 4)):
+        parts, extra, _ = _problem(seed)
+        p = parts[0]
+        events = _events(p.force_N.size, np.random.default_rng(seed + 10), 9)
+        base, new = GramDesign(parts).left_out(extra, [events], folds)
+        full = np.column_stack([p.columns.values, extra[0].values])
+        lower = np.concatenate([p.columns.lower, extra[0].lower])
+        m = p.columns.values.shape[1]
+        k = min(folds, len(events))
+        expected_base, expected_new = [], []
+        for i, rows in enumerate(events):
+            keep = p.train.copy()
+            for other in events[i % k :: k]:
+                keep[other] = False
+            with_extra = optimize.lsq_linear(
+                full[keep], p.force_N[keep], bounds=(lower, np.full(lower.size, np.inf))
+            ).x
+            without = optimize.lsq_linear(
+                full[keep][:, :m], p.force_N[keep], bounds=(lower[:m], np.full(m, np.inf))
+            ).x
+            expected_new.append(p.force_N[rows] - full[rows] @ with_extra)
+            expected_base.append(p.force_N[rows] - full[rows][:, :m] @ without)
+        assert np.allclose(new, np.concatenate(expected_new), atol=1e-7)
+        assert np.allclose(base, np.concatenate(expected_base), atol=1e-7)
+
+
+def test_an_event_left_out_is_judged_by_a_fit_that_never_saw_it() -> None:
+    """One event per fold: a disturbance at an event moves its own residuals by exactly
+    the disturbance (its fit did not see it), and every other event's by some."""
+    parts, extra, _ = _problem(3)
+    p = parts[0]
+    events = _events(p.force_N.size, np.random.default_rng(4), 6)
+    base, new = GramDesign(parts).left_out(extra, [events], len(events))
+    bumped = p.force_N.copy()
+    bumped[events[2]] += 50.0
+    part = PartDesign(p.columns, bumped, p.train, p.held)
+    base2, new2 = GramDesign([part]).left_out(extra, [events], len(events))
+    sizes = np.cumsum([0] + [e.size for e in events])
+    own = slice(sizes[2], sizes[3])
+    assert np.allclose(new2[own] - new[own], 50.0) and np.allclose(base2[own] - base[own], 50.0)
+    others = np.ones(new.size, dtype=bool)
+    others[own] = False
+    if np.any(p.train[events[2]]):  # its rows trained the other folds' fits
+        assert np.max(np.abs(new2[others] - new[others])) > 1e-3

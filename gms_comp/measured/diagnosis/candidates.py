@@ -20,6 +20,7 @@ from gms_comp.measured.diagnosis.design import (
     Columns,
     FloatArray,
     GramDesign,
+    IntArray,
     PartDesign,
     rms,
 )
@@ -37,6 +38,11 @@ from gms_comp.runtime import effects as fx
 # z 4.7).
 SUPPORT_ENERGY = 0.9
 SUPPORT_LEVEL = 0.1
+# An effect that acts at few events is judged on all of them, each by a fit without it
+# (:meth:`Scorer.left_out`): rows where it acts less than EVENT_GAP_S apart are one
+# event, and the events are dealt into at most LEFT_OUT_FOLDS folds.
+EVENT_GAP_S = 0.02
+LEFT_OUT_FOLDS = 10
 
 
 @dataclass(frozen=True)
@@ -123,8 +129,6 @@ class Scorer:
         self.held_residual_N = self.gram.held_residual(self.theta)
         self.heldout_rms_N = rms(self.held_residual_N)
         self._all_held = np.ones(self.held_residual_N.size, dtype=bool)
-        self._swapped: GramDesign | None = None
-        self._swapped_residual = np.zeros(0)
 
     def model(self, index: int = 0) -> FloatArray:
         """The current design's force on part ``index``."""
@@ -144,25 +148,19 @@ class Scorer:
         )
         return Trial(opt, rms(held), theta, held, support)
 
-    def crossed(self, trial: Trial) -> tuple[FloatArray, FloatArray, BoolArray]:
-        """The other fold of ``trial``'s judgement: the design fitted on the held-out
-        rows, without and with the option, its residuals on the training rows, and the
-        training rows where the option acts (a filter: every row). Pooled with the
-        held-out ones, every event of the trace is judged by a model fitted without it
-        (a dwell effect on a trace with four standstills may have none held out)."""
-        if self._swapped is None:
-            self._swapped = swapped(self.designs)
-            self._swapped_residual = self._swapped.held_residual(self._swapped.fit())
-        base = self._swapped_residual
-        if trial.option.is_filter:
-            gram = swapped(design(self.parts, [*self.chosen, trial.option]))
-            return base, gram.held_residual(gram.fit()), np.ones(base.size, dtype=bool)
+    def left_out(self, trial: Trial) -> tuple[FloatArray, FloatArray]:
+        """Residuals without and with ``trial``'s option at every row where it acts
+        (training and held out, every part, in time order), each event's from the design
+        fitted on the training rows without it (:meth:`~.design.GramDesign.left_out`;
+        an event: rows where it acts less than ``EVENT_GAP_S`` apart). An effect at a
+        few events (a dwell gain at a few starts) is judged on all of them, none by a fit
+        that saw it; the held-out rows alone may hold none of them."""
         extra = [trial.option.columns(fp, self.filters) for fp in self.parts]
-        _, new = self._swapped.trial(extra)
-        support = np.concatenate(
-            [where_acting(e.values[fp.part.train]) for e, fp in zip(extra, self.parts, strict=True)]
-        )
-        return base, new, support
+        events = []
+        for e, fp in zip(extra, self.parts, strict=True):
+            gap = max(1, round(EVENT_GAP_S / max(fp.ctx.sample_time_s, 1e-12)))
+            events.append(_runs(where_acting(e.values), gap))
+        return self.gram.left_out(extra, events, LEFT_OUT_FOLDS)
 
     def change(self, trial: Trial) -> FloatArray:
         """How much ``trial`` changes the model force on the main part."""
@@ -175,9 +173,12 @@ class Scorer:
         return base @ trial.theta[:m] + extra @ trial.theta[m:] - self.model()
 
 
-def swapped(designs: Sequence[PartDesign]) -> GramDesign:
-    """``designs`` fitted on their held-out rows and judged on their training rows."""
-    return GramDesign([PartDesign(d.columns, d.force_N, d.held, d.train) for d in designs])
+def _runs(mask: BoolArray, gap: int) -> list[IntArray]:
+    """The rows of ``mask``'s runs, runs less than ``gap`` rows apart merged."""
+    rows = np.flatnonzero(mask)
+    if rows.size == 0:
+        return []
+    return np.split(rows, np.flatnonzero(np.diff(rows) > gap) + 1)
 
 
 def where_acting(values: FloatArray) -> BoolArray:

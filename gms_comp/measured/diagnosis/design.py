@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg, optimize
 
-from gms_comp.arrays import BoolArray, FloatArray
+from gms_comp.arrays import BoolArray, FloatArray, IntArray
 
 # Ridge (relative to the unit diagonal of the scaled Gram matrix) that keeps an empty or
 # duplicated column from making the solve singular; its coefficient then stays near 0.
@@ -125,7 +125,7 @@ class GramDesign:
         """Coefficients and held-out residual of this design plus ``extra`` (one
         :class:`Columns` per part), fitted on the training rows."""
         m = self.lower.size
-        theta = solve_gram(*self._augmented(extra))
+        theta = solve_gram(*self.augmented(extra))
         pred = [
             a @ theta[:m] + np.take(e.values, rows, axis=0) @ theta[m:]
             for a, rows, e in zip(self._held_a, self._held_rows, extra, strict=True)
@@ -135,7 +135,7 @@ class GramDesign:
     def trial_train_rms(self, extra: Sequence[Columns]) -> tuple[FloatArray, float]:
         """Coefficients and training RMS of this design plus ``extra``, from the Gram
         matrix alone (no residual over the training rows)."""
-        theta, sse = solve_gram_sse(*self._augmented(extra))
+        theta, sse = solve_gram_sse(*self.augmented(extra))
         return theta, float(np.sqrt(max(self._yy + sse, 0.0) / max(self._n_train, 1)))
 
     def column_replaced(
@@ -164,8 +164,40 @@ class GramDesign:
             self._train_a[part][:, i] = v[self._train_rows[part]]
             self._held_a[part][:, i] = v[self._held_rows[part]]
 
-    def _augmented(self, extra: Sequence[Columns]) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """The training Gram matrix, right-hand side and bounds with ``extra`` added."""
+    def left_out(
+        self, extra: Sequence[Columns], events: Sequence[Sequence[IntArray]], folds: int
+    ) -> tuple[FloatArray, FloatArray]:
+        """Residuals at the ``events`` (row indices, per part) of this design without
+        and with ``extra`` (one :class:`Columns` per part), each event's from the fit on
+        the training rows less its fold's: the events, part by part in order, are dealt
+        into at most ``folds`` folds. Returns the residuals of the events in order."""
+        gram, rhs, lower = self.augmented(extra)
+        m = self.lower.size
+        order = [(p, rows) for p, part_events in enumerate(events) for rows in part_events]
+        if not order:
+            return np.zeros(0), np.zeros(0)
+        n_folds = min(folds, len(order))
+        base: list[FloatArray] = [np.zeros(0)] * len(order)
+        new: list[FloatArray] = [np.zeros(0)] * len(order)
+        for fold in range(n_folds):
+            g, r = gram.copy(), rhs.copy()
+            for p, rows in order[fold::n_folds]:
+                train = rows[self.parts[p].train[rows]]
+                a = np.column_stack([self.parts[p].columns.values[train], extra[p].values[train]])
+                g -= a.T @ a
+                r -= a.T @ self.parts[p].force_N[train]
+            theta = solve_gram(g, r, lower)
+            theta0 = solve_gram(g[:m, :m], r[:m], lower[:m])
+            for i in range(fold, len(order), n_folds):
+                p, rows = order[i]
+                a, b = self.parts[p].columns.values[rows], extra[p].values[rows]
+                y = self.parts[p].force_N[rows]
+                base[i], new[i] = y - a @ theta0, y - a @ theta[:m] - b @ theta[m:]
+        return np.concatenate(base), np.concatenate(new)
+
+    def augmented(self, extra: Sequence[Columns]) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The training Gram matrix, right-hand side and bounds with ``extra`` (one
+        :class:`Columns` per part) added."""
         m, q = self.lower.size, extra[0].lower.size
         cross = np.zeros((m, q))
         inner = np.zeros((q, q))

@@ -5,7 +5,8 @@ effects kept so far, refines the best shape of each effect that helps by a bound
 search, and keeps the admissible effect with the lowest held-out RMS. An effect is
 admissible if it lowers the held-out RMS by more than ``margin`` (relative), or by a
 smaller but significant step (t statistic over held-out chunks); an effect that acts on
-few samples (a dwell gain at break-aways) is also judged where it acts; and in any case
+few samples (a dwell gain at break-aways) is also judged where it acts, at every event by
+a fit that did not see it (the held-out rows may hold none of its events); and in any case
 it must change the model force somewhere by ``min_effect_fraction`` of the sliding force
 (on clean traces tiny stray terms always lower the held-out error a little). Every
 search here is bounded: rounds by ``max_effects``, grids by the catalogue, local search
@@ -109,22 +110,21 @@ def significance(current: FloatArray, new: FloatArray) -> float:
 def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: float) -> bool:
     """Whether ``trial`` is worth an effect (see the module docstring)."""
     rms0, held0 = scorer.heldout_rms_N, scorer.held_residual_N
-    if trial.heldout_rms_N >= rms0:
+    support = trial.support
+    local = np.count_nonzero(support) < LOCAL_SHARE * support.size
+    if trial.heldout_rms_N >= rms0 and not local:
         return False
     worth = trial.heldout_rms_N <= (1.0 - cfg.margin) * rms0 or (
         trial.heldout_rms_N <= (1.0 - cfg.small_margin) * rms0
         and significance(held0, trial.held_residual_N) >= cfg.significance_t
     )
-    support = trial.support
-    if not worth and np.count_nonzero(support) < LOCAL_SHARE * support.size:
-        # judged where it acts on both folds (held out, and training with the fit on the
-        # held-out rows): an effect at a few events may have none or one held out
-        base, new, where = scorer.crossed(trial)
-        local0 = np.concatenate([held0[support], base[where]])
-        local1 = np.concatenate([trial.held_residual_N[support], new[where]])
+    if not worth and local:
+        # judged where it acts, at every event by a fit without it: an effect at a few
+        # events may have none or one held out (and the held-out RMS not lowered)
+        local0, local1 = scorer.left_out(trial)
         worth = local0.size > 0 and (
             rms(local1) <= (1.0 - cfg.local_margin) * rms(local0)
-            and significance(local0, local1) >= cfg.significance_t
+            and significance(local0, local1) >= cfg.local_significance_t
         )
     if not worth or not consistent(scorer, trial):
         return False
