@@ -23,6 +23,7 @@ from gms_comp.measured.diagnosis.design import (
     IntArray,
     PartDesign,
     rms,
+    train_rms,
 )
 from gms_comp.runtime import effects as fx
 
@@ -129,6 +130,7 @@ class Scorer:
         self.held_residual_N = self.gram.held_residual(self.theta)
         self.heldout_rms_N = rms(self.held_residual_N)
         self._all_held = np.ones(self.held_residual_N.size, dtype=bool)
+        self._whole: GramDesign | None = None
 
     def model(self, index: int = 0) -> FloatArray:
         """The current design's force on part ``index``."""
@@ -147,6 +149,21 @@ class Scorer:
             [where_acting(e.values[fp.part.held]) for e, fp in zip(extra, self.parts, strict=True)]
         )
         return Trial(opt, rms(held), theta, held, support)
+
+    def whole_rms(self, opt: Option) -> float:
+        """The RMS over every row (training and held out) of the design with ``opt``
+        added, fitted on every row: the cost that places the shape of an effect at a few
+        events (a dwell gain at a few starts) on all of them, before it is judged on each
+        by a fit without it (:meth:`left_out`)."""
+        if self._whole is None:
+            self._whole = GramDesign(
+                [PartDesign(d.columns, d.force_N, d.train | d.held, d.held) for d in self.designs]
+            )
+        if opt.is_filter:
+            designs = design(self.parts, [*self.chosen, opt])
+            whole = [PartDesign(d.columns, d.force_N, d.train | d.held, d.held) for d in designs]
+            return train_rms(whole, GramDesign(whole).fit())
+        return self._whole.trial_train_rms([opt.columns(fp, self.filters) for fp in self.parts])[1]
 
     def left_out(self, trial: Trial) -> tuple[FloatArray, FloatArray]:
         """Residuals without and with ``trial``'s option at every row where it acts

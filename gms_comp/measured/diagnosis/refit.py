@@ -28,12 +28,13 @@ from gms_comp.measured.diagnosis.baseline import (
 )
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, design, effect_of, widths
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
-from gms_comp.measured.diagnosis.design import GramDesign, rms, train_rms
+from gms_comp.measured.diagnosis.design import GramDesign, PartDesign, rms, train_rms
 from gms_comp.measured.diagnosis.selection import Selection, admissible, agreed, local_search
 from gms_comp.runtime import effects as fx
 
 JOINT_REFITS = 3
 REFIT_SHAPES = (fx.DwellTime, fx.Drift)
+WHOLE_ROWS = (fx.DwellTime,)
 
 
 @dataclass(frozen=True)
@@ -171,7 +172,10 @@ def _refine_shape(
     parts: Sequence[FittedPart], others: list[Option], opt: Option, presliding_m: float
 ) -> Option:
     """``opt``'s shape searched with the ``others`` fixed (see :func:`_refine_shapes`)."""
-    rest = GramDesign(design(parts, others))  # the trials add their columns to it
+    designs = design(parts, others)
+    if opt.effect in WHOLE_ROWS:
+        designs = [PartDesign(d.columns, d.force_N, d.train | d.held, d.held) for d in designs]
+    rest = GramDesign(designs)  # the trials add their columns to it
     filters = [o for o in others if o.is_filter]
     m = rest.lower.size
 
@@ -182,6 +186,16 @@ def _refine_shape(
         return agreed(fit(trial), lambda f: f[0], lambda f: f[1][m:], fit)
 
     first, _, first_cost = settled(opt)
+    if opt.effect in WHOLE_ROWS:  # from the best of its grid's time constants
+        fixed = {k: opt.shape[k] for k in opt.effect.SET_BY_SIZE}
+        grid = {
+            tuple(v for k, v in sorted(shape.items()) if k not in fixed): {**shape, **fixed}
+            for shape in opt.effect.shape_grid(parts[0].ctx, np.zeros(0), presliding_m)
+        }
+        for shape in grid.values():
+            trial, _, cost = settled(Option(opt.effect, shape))
+            if cost < first_cost:
+                first, first_cost = trial, cost
     bounds = opt.effect.shape_bounds(parts[0].ctx, presliding_m)
     best = local_search(first, lambda t: settled(t)[2], first_cost, bounds, opt.effect.SET_BY_SIZE)
     return settled(best[0])[0]
