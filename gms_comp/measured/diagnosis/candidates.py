@@ -44,6 +44,8 @@ SUPPORT_LEVEL = 0.1
 # event, and the events are dealt into at most LEFT_OUT_FOLDS folds.
 EVENT_GAP_S = 0.02
 LEFT_OUT_FOLDS = 10
+# The columns of this many options are kept by a Scorer (one round of the selection).
+COLUMNS_KEPT = 32
 
 
 @dataclass(frozen=True)
@@ -131,6 +133,7 @@ class Scorer:
         self.heldout_rms_N = rms(self.held_residual_N)
         self._all_held = np.ones(self.held_residual_N.size, dtype=bool)
         self._whole: GramDesign | None = None
+        self._columns: dict[tuple[object, ...], list[Columns]] = {}
 
     def model(self, index: int = 0) -> FloatArray:
         """The current design's force on part ``index``."""
@@ -143,12 +146,23 @@ class Scorer:
             theta = gram.fit()
             held = gram.held_residual(theta)
             return Trial(opt, rms(held), theta, held, self._all_held)
-        extra = [opt.columns(fp, self.filters) for fp in self.parts]
+        extra = self.extra(opt)
         theta, held = self.gram.trial(extra)
         support = np.concatenate(
             [where_acting(e.values[fp.part.held]) for e, fp in zip(extra, self.parts, strict=True)]
         )
         return Trial(opt, rms(held), theta, held, support)
+
+    def extra(self, opt: Option) -> list[Columns]:
+        """The additive ``opt``'s columns on each part, through the chosen filters (the
+        last ``COLUMNS_KEPT`` options' kept: a shape is scored, then judged, or settled
+        and then costed, and an effect's columns may take 15 ms each)."""
+        key = (opt.effect.name, *sorted(opt.shape.items()))
+        if key not in self._columns:
+            if len(self._columns) >= COLUMNS_KEPT:
+                del self._columns[next(iter(self._columns))]
+            self._columns[key] = [opt.columns(fp, self.filters) for fp in self.parts]
+        return self._columns[key]
 
     def whole_rms(self, opt: Option) -> float:
         """The RMS over every row (training and held out) of the design with ``opt``
@@ -163,7 +177,7 @@ class Scorer:
             designs = design(self.parts, [*self.chosen, opt])
             whole = [PartDesign(d.columns, d.force_N, d.train | d.held, d.held) for d in designs]
             return train_rms(whole, GramDesign(whole).fit())
-        return self._whole.trial_train_rms([opt.columns(fp, self.filters) for fp in self.parts])[1]
+        return self._whole.trial_train_rms(self.extra(opt))[1]
 
     def left_out(self, trial: Trial) -> tuple[FloatArray, FloatArray]:
         """Residuals without and with ``trial``'s option at every row where it acts
@@ -172,7 +186,7 @@ class Scorer:
         an event: rows where it acts less than ``EVENT_GAP_S`` apart). An effect at a
         few events (a dwell gain at a few starts) is judged on all of them, none by a fit
         that saw it; the held-out rows alone may hold none of them."""
-        extra = [trial.option.columns(fp, self.filters) for fp in self.parts]
+        extra = self.extra(trial.option)
         events = []
         for e, fp in zip(extra, self.parts, strict=True):
             gap = max(1, round(EVENT_GAP_S / max(fp.ctx.sample_time_s, 1e-12)))

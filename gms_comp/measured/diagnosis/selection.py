@@ -42,8 +42,10 @@ CONSISTENCY_CONVERGED = 1.1
 CONSISTENT_WITHIN = 1.5
 # Contiguous chunks of held-out samples for the significance of an improvement.
 SIGNIFICANCE_CHUNKS = 50
-# An effect acting on less than this share of the held-out samples is judged there.
+# An effect acting on less than this share of the held-out samples is judged there; its
+# shape is searched from the LOCAL_STARTS best of its grid (:func:`_local_shape`).
 LOCAL_SHARE = 0.25
+LOCAL_STARTS = 3
 
 Progress = Callable[[str], None]
 
@@ -206,7 +208,9 @@ def _local_shape(scorer: Scorer, trials: Sequence[Trial], presliding_m: float) -
     starts: dict[tuple[float, ...], Trial] = {}
     for t in sorted(trials, key=lambda t: agreement(t.option, t.theta[m:])[1]):
         starts.setdefault(tuple(t.option.shape[k] for k in free), t)
-    start = min((t.option for t in starts.values()), key=cost)
+    # settled: the LOCAL_STARTS best as they are (settling costs up to four fits each)
+    ranked = sorted(starts.values(), key=lambda t: scorer.whole_rms(t.option))
+    start = min((t.option for t in ranked[:LOCAL_STARTS]), key=cost)
     bounds = effect.shape_bounds(scorer.parts[0].ctx, presliding_m)
     opt, _ = local_search(start, cost, cost(start), bounds, effect.SET_BY_SIZE)
     return settle(opt)

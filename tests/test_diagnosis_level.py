@@ -1,0 +1,50 @@
+"""The blind baseline's velocity level against an independent truth.
+
+The independent generator (tests/indepgen.py) raises its element limits from the stick
+level to C_v as 1 + (C_v - 1) q / (1 + q), q = (|v| / v_t)^2: still 10 % short of C_v at
+3 v_t, 1 % at 10 v_t. A Gaussian onset (the seed's default shape) reaches C_v within a
+per cent by 2.1 v_t, so a baseline held to it is low over a decade of speed above v_t,
+and a viscous term took that on effect-free traces."""
+
+from __future__ import annotations
+
+import functools
+import itertools
+
+import numpy as np
+import pytest
+from indepgen import make_trace
+
+from gms_comp.measured.diagnosis.baseline import Baseline, fit_baseline
+from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.prepare import prepare
+from gms_comp.measured.traces import Trace
+
+
+@functools.cache
+def _baseline(seed: int) -> tuple[Baseline, float, float]:
+    gen = make_trace("none", seed)
+    trace = Trace("indep", gen.time_s, gen.position_m, gen.force_N)
+    baseline = fit_baseline(prepare(trace, "friction", None, DiagnosisConfig()), DiagnosisConfig(),
+                            None)  # fmt: skip
+    return baseline, gen.transition_velocity_m_per_s, gen.noise_N
+
+
+@pytest.mark.parametrize("seed", [114, 105])
+def test_the_level_follows_a_slow_approach_to_the_sliding_level(seed: int) -> None:
+    """Above the truth's v_t the held-out residual's mean in every speed band (by
+    direction) is within a third of the noise; held to the Gaussian shape it was 0.5-0.7 x
+    the noise on seed 114 (0.2-0.27 N at 3-30 mm/s)."""
+    baseline, v_t, noise = _baseline(seed)
+    part = baseline.parts[0].part
+    residual = part.force_N - baseline.predictions[0]
+    v = part.kin.velocity_m_s
+    top = float(np.max(np.abs(v)))
+    edges = np.geomspace(3 * v_t, top, 6)
+    for lo, hi in itertools.pairwise(edges):
+        for sign in (1.0, -1.0):
+            band = part.held & (sign * v > lo) & (sign * v <= hi)
+            if np.count_nonzero(band) < 200:
+                continue
+            assert abs(float(np.mean(residual[band]))) < noise / 3, (lo, hi, sign)
+    assert baseline.gms.transition_exponent < 2.0
