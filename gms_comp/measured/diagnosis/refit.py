@@ -173,14 +173,21 @@ def _refine_shape(
 ) -> Option:
     """``opt``'s shape searched with the ``others`` fixed (see :func:`_refine_shapes`)."""
     designs = design(parts, others)
-    if opt.effect in WHOLE_ROWS:
-        designs = [PartDesign(d.columns, d.force_N, d.train | d.held, d.held) for d in designs]
     rest = GramDesign(designs)  # the trials add their columns to it
+    # an effect at few events is costed on every row; its size (which its shape must
+    # agree with) is still the training rows' fit, as the model's coefficients are
+    whole = (
+        GramDesign([PartDesign(d.columns, d.force_N, d.train | d.held, d.held) for d in designs])
+        if opt.effect in WHOLE_ROWS
+        else rest
+    )
     filters = [o for o in others if o.is_filter]
     m = rest.lower.size
 
     def fit(trial: Option) -> tuple[Option, FloatArray, float]:
-        return (trial, *rest.trial_train_rms([trial.columns(fp, filters) for fp in parts]))
+        extra = [trial.columns(fp, filters) for fp in parts]
+        theta, cost = rest.trial_train_rms(extra)
+        return trial, theta, (cost if whole is rest else whole.trial_train_rms(extra)[1])
 
     def settled(trial: Option) -> tuple[Option, FloatArray, float]:
         return agreed(fit(trial), lambda f: f[0], lambda f: f[1][m:], fit)
