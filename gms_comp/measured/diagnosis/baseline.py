@@ -207,7 +207,7 @@ def fit_free(
         level = _level_of(start)
         best = (cost(level), level)
         steps = REFINE_STEPS[1:]
-    best = _coordinate_steps(best, lambda level: cost(level), steps, vt_range)
+    best = _coordinate_steps(best, cost, steps, vt_range)
     return FreeBasis(breakaway_m, *best[1])
 
 

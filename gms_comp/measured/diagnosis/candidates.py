@@ -22,8 +22,8 @@ from gms_comp.measured.diagnosis.design import (
     GramDesign,
     IntArray,
     PartDesign,
+    every_row,
     rms,
-    train_rms,
 )
 from gms_comp.runtime import effects as fx
 
@@ -165,18 +165,12 @@ class Scorer:
         return self._columns[key]
 
     def whole_rms(self, opt: Option) -> float:
-        """The RMS over every row (training and held out) of the design with ``opt``
-        added, fitted on every row: the cost that places the shape of an effect at a few
-        events (a dwell gain at a few starts) on all of them, before it is judged on each
-        by a fit without it (:meth:`left_out`)."""
+        """The RMS over every row (training and held out) of the design with the
+        additive ``opt`` added, fitted on every row: the cost that places the shape of
+        an effect at a few events (a dwell gain at a few starts) on all of them, before
+        it is judged on each by a fit without it (:meth:`left_out`)."""
         if self._whole is None:
-            self._whole = GramDesign(
-                [PartDesign(d.columns, d.force_N, d.train | d.held, d.held) for d in self.designs]
-            )
-        if opt.is_filter:
-            designs = design(self.parts, [*self.chosen, opt])
-            whole = [PartDesign(d.columns, d.force_N, d.train | d.held, d.held) for d in designs]
-            return train_rms(whole, GramDesign(whole).fit())
+            self._whole = GramDesign(every_row(self.designs))
         return self._whole.trial_train_rms(self.extra(opt))[1]
 
     def left_out(self, trial: Trial) -> tuple[FloatArray, FloatArray]:
@@ -199,7 +193,7 @@ class Scorer:
             new = design(self.parts, [*self.chosen, trial.option])[0].columns.values
             return new @ trial.theta - self.model()
         m = self.theta.size
-        extra = trial.option.columns(self.parts[0], self.filters).values
+        extra = self.extra(trial.option)[0].values
         base = self.designs[0].columns.values
         return base @ trial.theta[:m] + extra @ trial.theta[m:] - self.model()
 

@@ -214,6 +214,11 @@ class GramDesign:
                 np.concatenate([self.lower, extra[0].lower]))  # fmt: skip
 
 
+def every_row(parts: Sequence[PartDesign]) -> list[PartDesign]:
+    """``parts`` fitted on all their rows, training and held out (held out: as before)."""
+    return [PartDesign(p.columns, p.force_N, p.train | p.held, p.held) for p in parts]
+
+
 def train_rms(parts: Sequence[PartDesign], theta: FloatArray) -> float:
     """Training RMS of the parts' design with coefficients ``theta``."""
     return rms(

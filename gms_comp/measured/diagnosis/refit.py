@@ -28,7 +28,7 @@ from gms_comp.measured.diagnosis.baseline import (
 )
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, design, effect_of, widths
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
-from gms_comp.measured.diagnosis.design import GramDesign, PartDesign, rms, train_rms
+from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms, train_rms
 from gms_comp.measured.diagnosis.selection import Selection, admissible, agreed, local_search
 from gms_comp.runtime import effects as fx
 
@@ -176,11 +176,7 @@ def _refine_shape(
     rest = GramDesign(designs)  # the trials add their columns to it
     # an effect at few events is costed on every row; its size (which its shape must
     # agree with) is still the training rows' fit, as the model's coefficients are
-    whole = (
-        GramDesign([PartDesign(d.columns, d.force_N, d.train | d.held, d.held) for d in designs])
-        if opt.effect in WHOLE_ROWS
-        else rest
-    )
+    whole = GramDesign(every_row(designs)) if opt.effect in WHOLE_ROWS else rest
     filters = [o for o in others if o.is_filter]
     m = rest.lower.size
 
