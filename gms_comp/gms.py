@@ -193,6 +193,35 @@ def _level(speed: float, scalars: FloatArray) -> float:
     return scalars[_SLIP_LEVEL] + (1.0 - scalars[_SLIP_LEVEL]) * math.exp(-p)
 
 
+@numba.njit(cache=True, inline="always")
+def _sample(dx: float, speed: float, scalars: FloatArray) -> tuple[float, float]:
+    """The level s(v) of a sample and the fraction of a slipping element's distance to
+    its target left after it: exp(-C dt / s) with dt = |dx| / |v|; 0 at rest or for
+    C = inf."""
+    level = _level(speed, scalars)
+    rate = scalars[_ATTRACTION]
+    if speed == 0.0 or math.isinf(rate):
+        return level, 0.0
+    return level, math.exp(-rate * abs(dx) / (level * speed))
+
+
+@numba.njit(cache=True, inline="always")
+def _element(
+    f: float, d: float, k: float, limit: float, dx: float, level: float, remain: float
+) -> tuple[float, float]:
+    """Element force and slip direction after a step ``dx`` (branch-free, so that the
+    element loops vectorise)."""
+    slipping = (d * dx >= 0.0) & (d != 0.0)
+    # An element leaving slip (a reversal) restarts from its stick limit.
+    stick = (f if d == 0.0 else d * limit) + k * dx
+    entering = (stick > limit) * 1.0 - (stick < -limit) * 1.0
+    direction = d if slipping else entering
+    target = direction * level * limit
+    start = f if slipping else direction * limit
+    clipped = min(max(stick, -limit), limit)
+    return (target + (start - target) * remain if direction != 0.0 else clipped), direction
+
+
 @numba.njit(cache=True, fastmath=_FAST)
 def _run(
     stiffness: FloatArray,
@@ -212,37 +241,43 @@ def _run(
     w = limits.copy()
     f = forces.copy()
     d = slips.copy()
-    rate = scalars[_ATTRACTION]
     previous = position[0] if math.isnan(last_position) else last_position
     for j in range(position.size):
         dx = position[j] - previous
         previous = position[j]
-        speed = abs(velocity[j])
-        level = _level(speed, scalars)
-        # Fraction of a slipping element's distance to its target left after this
-        # sample: exp(-C dt / s) with dt = |dx| / |v|; 0 at rest or for C = inf.
-        if speed == 0.0 or math.isinf(rate):
-            remain = 0.0
-        else:
-            remain = math.exp(-rate * abs(dx) / (level * speed))
+        level, remain = _sample(dx, abs(velocity[j]), scalars)
         total = 0.0
         for i in range(k.size):
-            limit = w[i]
-            slipping = (d[i] * dx >= 0.0) & (d[i] != 0.0)
-            # An element leaving slip (a reversal) restarts from its stick limit.
-            stick = (f[i] if d[i] == 0.0 else d[i] * limit) + k[i] * dx
-            entering = (stick > limit) * 1.0 - (stick < -limit) * 1.0
-            direction = d[i] if slipping else entering
-            target = direction * level * limit
-            start = f[i] if slipping else direction * limit
-            clipped = min(max(stick, -limit), limit)
-            f_new = target + (start - target) * remain if direction != 0.0 else clipped
-            d[i] = direction
-            f[i] = f_new
-            total += f_new
+            f[i], d[i] = _element(f[i], d[i], k[i], w[i], dx, level, remain)
+            total += f[i]
         out[j] = total + scalars[_VISCOUS] * velocity[j]
     forces[:] = f
     slips[:] = d
+
+
+@numba.njit(cache=True, fastmath=_FAST)
+def _run_elements(
+    stiffness: FloatArray,
+    limits: FloatArray,
+    scalars: FloatArray,
+    position: FloatArray,
+    velocity: FloatArray,
+    out: FloatArray,
+) -> None:
+    """:func:`_run` from the virgin state, each element's force in a column of ``out``
+    (the level and attraction of a sample computed once for all elements)."""
+    k = stiffness.copy()
+    w = limits.copy()
+    f = np.zeros(k.size)
+    d = np.zeros(k.size)
+    previous = position[0]
+    for j in range(position.size):
+        dx = position[j] - previous
+        previous = position[j]
+        level, remain = _sample(dx, abs(velocity[j]), scalars)
+        for i in range(k.size):
+            f[i], d[i] = _element(f[i], d[i], k[i], w[i], dx, level, remain)
+            out[j, i] = f[i]
 
 
 # --- the two interfaces ---------------------------------------------------------------
@@ -302,6 +337,31 @@ def simulate(
         )
         new.position_m = float(x[-1])
     return out, new
+
+
+def simulate_elements(
+    params: GmsParams, position_m: ArrayLike, velocity_m_s: ArrayLike
+) -> FloatArray:
+    """Each element's force along a sampled trajectory from the virgin state, shape
+    (samples, elements): :func:`simulate`'s force is their row sums plus the viscous
+    force. One pass for all elements (the diagnosis's and the reduction's basis columns).
+
+    Examples
+    --------
+    >>> p = GmsParams(np.array([1e6, 1e5]), np.array([0.1, 0.1]))
+    >>> np.round(simulate_elements(p, [0.0, 5e-8, 1e-6], [0.0, 1e-3, 1e-3]), 3).tolist()
+    [[0.0, 0.0], [0.05, 0.005], [0.1, 0.1]]
+    """
+    x = np.ascontiguousarray(position_m, dtype=np.float64)
+    v = np.ascontiguousarray(velocity_m_s, dtype=np.float64)
+    if x.ndim != 1 or x.shape != v.shape:
+        raise ValueError(
+            f"position_m and velocity_m_s must be 1-D of equal length, got {x.shape} and {v.shape}"
+        )
+    out = np.empty((x.size, params.n_elements))
+    if x.size:
+        _run_elements(params.stiffness_N_per_m, params.limit_N, params.scalars, x, v, out)
+    return out
 
 
 class GmsStream:

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from gms_comp.gms import GmsParams, GmsStream, simulate
+from gms_comp.gms import GmsParams, GmsStream, simulate, simulate_elements
 
 SPEED_m_s = 1e-2  # far above the level transition speed: the level is slip_level
 STEP_m = 2e-8
@@ -211,6 +211,28 @@ def test_stream_equals_batch_and_batch_continues_from_state() -> None:
     np.testing.assert_allclose(stepped, whole, rtol=0, atol=1e-15)
     stream.reset()
     assert stream.step(float(x[5]), 0.0) == 0.0
+
+
+def test_element_forces_are_each_element_alone_and_sum_to_the_force() -> None:
+    """One pass for all elements gives, column by column, each element simulated alone
+    (a GMS's elements do not interact), and the row sums plus sigma2 v are the force."""
+    k, w = elements(7, 6)
+    p = GmsParams(
+        k, w, slip_level=1.3, transition_velocity_m_s=2e-4, transition_exponent=1.4,
+        attraction_rate_per_s=800.0, viscous_Ns_per_m=0.5,
+    )  # fmt: skip
+    t = np.linspace(0, 1, 4001)
+    x = 3e-6 * np.sin(2 * np.pi * 2 * t) + 1e-6 * np.sin(2 * np.pi * 11 * t)
+    v = np.gradient(x, t)
+    columns = simulate_elements(p, x, v)
+    for i in range(k.size):
+        alone = GmsParams(
+            k[i : i + 1], w[i : i + 1], slip_level=1.3, transition_velocity_m_s=2e-4,
+            transition_exponent=1.4, attraction_rate_per_s=800.0,
+        )  # fmt: skip
+        np.testing.assert_array_equal(columns[:, i], simulate(alone, x, v)[0])
+    np.testing.assert_allclose(columns.sum(axis=1) + 0.5 * v, simulate(p, x, v)[0], atol=1e-12)
+    assert simulate_elements(p, x[:0], v[:0]).shape == (0, 7)
 
 
 @pytest.mark.parametrize(

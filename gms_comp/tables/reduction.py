@@ -45,7 +45,7 @@ from tqdm import tqdm
 from gms_comp.arrays import FloatArray
 from gms_comp.config import config_hash, in_range, parse_section, read_toml
 from gms_comp.errors import ConfigError, InputError
-from gms_comp.gms import GmsParams, element_shape, simulate
+from gms_comp.gms import GmsParams, element_shape, simulate, simulate_elements
 from gms_comp.physics.config import BallConfig
 from gms_comp.physics.contact import contact_problem, hertz_contact
 from gms_comp.physics.profiles import seed_fig7_profile
@@ -101,11 +101,8 @@ def element_responses(
     breakpoints_m: FloatArray, template: GmsParams, position_m: FloatArray, velocity_m_s: FloatArray
 ) -> FloatArray:
     """Force of each unit-stiffness element (W_i = Delta_i) along a path, shape (T, N)."""
-    columns = [
-        simulate(_with_elements(template, np.ones(1), np.array([b])), position_m, velocity_m_s)[0]
-        for b in breakpoints_m
-    ]
-    return np.column_stack(columns)
+    unit = _with_elements(template, np.ones(breakpoints_m.size), np.asarray(breakpoints_m))
+    return simulate_elements(unit, position_m, velocity_m_s)
 
 
 def _with_elements(

@@ -29,7 +29,7 @@ import numpy as np
 from scipy import optimize
 
 from gms_comp.arrays import BoolArray, FloatArray
-from gms_comp.gms import GmsParams, simulate
+from gms_comp.gms import GmsParams, simulate, simulate_elements
 from gms_comp.measured.diagnosis.design import solve
 from gms_comp.measured.diagnosis.motion import Kinematics
 
@@ -63,13 +63,8 @@ class FreeBasis:
 
     def columns(self, kin: Kinematics) -> FloatArray:
         """phi_i: the force of a unit-limit element with break-away ``breakaway_m[i]``."""
-        return np.column_stack(
-            [
-                simulate(self.gms(np.array([1.0]), np.array([d])), kin.position_m,
-                         kin.velocity_m_s)[0]
-                for d in self.breakaway_m
-            ]
-        )  # fmt: skip
+        unit = self.gms(np.ones(self.breakaway_m.size))
+        return simulate_elements(unit, kin.position_m, kin.velocity_m_s)
 
     def gms(self, coefficients: FloatArray, breakaway_m: FloatArray | None = None) -> GmsParams:
         """The GMS whose element i has limit ``coefficients[i]``; an element with zero
