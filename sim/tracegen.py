@@ -9,6 +9,7 @@ independent generator (tests/indepgen.py) that shares no code with the project.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -117,7 +118,4 @@ def scaled_gms(params: GmsParams, level: float, presliding: float) -> GmsParams:
     """``params`` with every limit W_i times ``level`` and every break-away W_i / k_i
     times ``presliding``: a machine whose guides match a table up to these factors."""
     k = params.stiffness_N_per_m * (level / presliding)
-    return GmsParams(
-        k, params.limit_N * level, params.slip_level, params.transition_velocity_m_s,
-        params.transition_exponent, params.attraction_rate_per_s, params.viscous_Ns_per_m,
-    )  # fmt: skip
+    return dataclasses.replace(params, stiffness_N_per_m=k, limit_N=params.limit_N * level)
