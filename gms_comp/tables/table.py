@@ -78,6 +78,7 @@ MAX_SLIP_LEVEL = 10.0
 MAX_TRANSITION_VELOCITY_M_S = 1.0
 #: Transition exponent of a table's velocity level.
 MAX_TRANSITION_EXPONENT = 10.0
+#: Transition tail of a table's velocity level (0: exponential, 1: rational; optional).
 MAX_TRANSITION_TAIL = 10.0
 #: Attraction rate of a table, 1/s (null means infinite: Maxwell-slip).
 MAX_ATTRACTION_RATE_PER_S = 1e9
