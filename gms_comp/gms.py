@@ -16,9 +16,6 @@ a stuck bristle carries k u up to f_max, a slipping one C_v f_max, so the force
 drops by C_v at a stop and at a reversal, and comes back when slipping
 resumes. C_v > 1 is the seed's slip exaggeration; C_v < 1 gives stiction with
 a Stribeck drop. With C_v = 1 it is Al-Bender's GMS with a constant level.
-With a tail kappa > 0 the exponential is (1 + kappa (|v| / v_t)^delta)^(-1/kappa),
-kappa = 1 being the rational (Lorentzian) law 1 / (1 + (|v| / v_t)^delta) of
-Al-Bender's GMS paper: the same onset, approached algebraically.
 
 The update is written per displacement step: over a sample, dt = |dx| / |v|,
 so the attraction becomes an exact exponential in displacement,
@@ -45,7 +42,7 @@ from numpy.typing import ArrayLike
 from gms_comp.arrays import FloatArray
 
 # Layout of the scalar parameter vector handed to the kernels.
-_SLIP_LEVEL, _TRANSITION_V, _TRANSITION_EXP, _ATTRACTION, _VISCOUS, _TRANSITION_TAIL = range(6)
+_SLIP_LEVEL, _TRANSITION_V, _TRANSITION_EXP, _ATTRACTION, _VISCOUS = range(5)
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,9 +66,6 @@ class GmsParams:
         gives the rate-independent Maxwell-slip model.
     viscous_Ns_per_m
         sigma2: viscous coefficient.
-    transition_tail
-        kappa: how the transition's tail approaches ``slip_level`` (0: exponentially,
-        1: algebraically, as 1 / (1 + (v / v_t)^delta)).
     """
 
     stiffness_N_per_m: FloatArray
@@ -81,7 +75,6 @@ class GmsParams:
     transition_exponent: float = 2.0
     attraction_rate_per_s: float = math.inf
     viscous_Ns_per_m: float = 0.0
-    transition_tail: float = 0.0
 
     def __post_init__(self) -> None:
         k = _frozen_vector(self.stiffness_N_per_m)
@@ -102,7 +95,6 @@ class GmsParams:
             and self.transition_exponent > 0,
             "attraction_rate_per_s": self.attraction_rate_per_s > 0,  # inf allowed
             "viscous_Ns_per_m": finite(self.viscous_Ns_per_m) and self.viscous_Ns_per_m >= 0,
-            "transition_tail": finite(self.transition_tail) and self.transition_tail >= 0,
         }
         for name, ok in checks.items():
             if not ok:
@@ -125,17 +117,13 @@ class GmsParams:
                 self.transition_exponent,
                 self.attraction_rate_per_s,
                 self.viscous_Ns_per_m,
-                self.transition_tail,
             ]
         )
 
     def level(self, velocity_m_s: ArrayLike) -> FloatArray:
         """The velocity level s(v) (1 at rest, ``slip_level`` when moving)."""
         u = np.abs(np.asarray(velocity_m_s, dtype=float)) / self.transition_velocity_m_s
-        p = u**self.transition_exponent
-        kappa = self.transition_tail
-        decay = np.exp(-p) if kappa == 0.0 else np.exp(-np.log1p(kappa * p) / kappa)
-        return self.slip_level + (1.0 - self.slip_level) * decay
+        return self.slip_level + (1.0 - self.slip_level) * np.exp(-(u**self.transition_exponent))
 
     def virgin_curve(self, displacement_m: ArrayLike, level: float = 1.0) -> FloatArray:
         """Force after a monotone displacement from the virgin state at a fixed level.
@@ -202,9 +190,7 @@ def _level(speed: float, scalars: FloatArray) -> float:
     u = speed / scalars[_TRANSITION_V]
     # The Gaussian shape is the default; avoid pow() on the hot path for it.
     p = u * u if scalars[_TRANSITION_EXP] == 2.0 else u ** scalars[_TRANSITION_EXP]
-    kappa = scalars[_TRANSITION_TAIL]
-    decay = math.exp(-p) if kappa == 0.0 else math.exp(-math.log1p(kappa * p) / kappa)
-    return scalars[_SLIP_LEVEL] + (1.0 - scalars[_SLIP_LEVEL]) * decay
+    return scalars[_SLIP_LEVEL] + (1.0 - scalars[_SLIP_LEVEL]) * math.exp(-p)
 
 
 @numba.njit(cache=True, inline="always")

@@ -19,7 +19,7 @@ from indepgen import baseline, make_trace
 
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.motion import kinematics
-from gms_comp.measured.diagnosis.prepare import held_third, prepare
+from gms_comp.measured.diagnosis.prepare import held_third, prepare, top_speed_blocks
 from gms_comp.measured.traces import Trace
 from gms_comp.runtime import effects as fx
 from gms_comp.runtime.effects.path import REST_HOLD_S
@@ -148,22 +148,33 @@ def test_the_training_rows_reach_the_top_speed(seed: int) -> None:
     assert float(np.max(speed[part.train])) >= 0.8 * float(np.max(speed))
 
 
+def test_a_held_block_with_the_only_top_speeds_is_trained_on() -> None:
+    """Blocks of 10 rows, the second third held; the top speed only in block 4: that block
+    is trained on, the other held blocks stay held; with the top speed also in a training
+    block, nothing moves."""
+    block = np.repeat(np.arange(9), 10)
+    held = block % 3 == 1
+    speed = np.full(block.size, 0.01)
+    speed[43] = 0.05  # block 4 (held)
+    speed[44] = 0.045  # same block, above 0.8 x the top
+    moved = top_speed_blocks(block, held, speed)
+    np.testing.assert_array_equal(moved, block == 4)
+    speed[51] = 0.041  # block 5 (training) reaches 0.8 x the top
+    assert not np.any(top_speed_blocks(block, held, speed))
+
+
 def test_the_held_third_follows_the_starts() -> None:
     """Starts only in the first and last thirds of the blocks: the last third (nearest a
-    third of them) is held out; spread over all three, or none at all: the second, unless
-    it holds the only fast move."""
+    third of them) is held out; spread over all three, or none at all: the second."""
     dt, blocks = 1e-3, 60
     t = np.arange(blocks * 1000) * dt
     third = (np.arange(t.size) * blocks // t.size) % 3
 
-    def held(start_blocks: list[int], fast_block: int | None = None) -> int:
+    def held(start_blocks: list[int]) -> int:
         x = np.zeros_like(t)
         for k, b in enumerate(start_blocks):  # a 1 mm move of 0.2 s from mid-block
             s = np.clip((t - b - 0.5) / 0.2, 0.0, 1.0)
             x += (1.0 if k % 2 == 0 else -1.0) * 1e-3 * s * s * (3.0 - 2.0 * s)
-        if fast_block is not None:  # and a 5 mm move at 2.5 x the speed there
-            s = np.clip((t - fast_block - 0.5) / 0.4, 0.0, 1.0)
-            x += 5e-3 * s * s * (3.0 - 2.0 * s)
         x = np.round(x / 1e-8) * 1e-8
         kin = kinematics(Trace("synthetic", t, x, np.ones_like(t)), 0.45 / dt)
         still = 0.01 * float(np.max(np.abs(kin.velocity_m_s)))
@@ -171,7 +182,4 @@ def test_the_held_third_follows_the_starts() -> None:
 
     assert held([0, 3, 6, 9, 12, 15, 18, 21, 2, 5, 8, 11]) == 2  # 8 / 0 / 4 per third
     assert held([0, 4, 8, 12, 16, 20, 24, 28, 32]) == 1  # 3 / 3 / 3
-    # the top speed only in block 40 (second third): held out, it would leave the
-    # training rows without it; the first third is then nearest a third of the starts
-    assert held([0, 4, 8, 12, 16, 20, 24, 28, 32], fast_block=40) == 0
     assert held([]) == 1

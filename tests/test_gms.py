@@ -213,21 +213,6 @@ def test_stream_equals_batch_and_batch_continues_from_state() -> None:
     assert stream.step(float(x[5]), 0.0) == 0.0
 
 
-@pytest.mark.parametrize("tail", [0.0, 0.5, 1.0])
-def test_sliding_force_follows_the_level_and_its_tail(tail: float) -> None:
-    """A unit element sliding at speed v carries s(v): exp(-u^2) for tail 0, the
-    rational 1 / (1 + u^2) for tail 1 (Al-Bender's form), in the kernel as in level()."""
-    p = GmsParams(np.array([1e6]), np.array([1.0]), slip_level=1.3,
-                  transition_velocity_m_s=1e-3, transition_tail=tail)  # fmt: skip
-    for v in (3e-4, 1e-3, 3e-3, 3e-2):
-        x = np.linspace(0.0, 1e-4, 200)  # far beyond the 1 um break-away
-        f, _ = simulate(p, x, np.full(x.size, v))
-        u2 = (v / 1e-3) ** 2
-        decay = {0.0: math.exp(-u2), 1.0: 1.0 / (1.0 + u2)}.get(tail, (1 + tail * u2) ** -2)
-        assert f[-1] == pytest.approx(1.3 - 0.3 * decay, rel=1e-12)
-        assert float(p.level(v)) == pytest.approx(f[-1], rel=1e-12)
-
-
 def test_element_forces_are_each_element_alone_and_sum_to_the_force() -> None:
     """One pass for all elements gives, column by column, each element simulated alone
     (a GMS's elements do not interact), and the row sums plus sigma2 v are the force."""

@@ -201,22 +201,6 @@ def test_extension_context_round_trips_and_absent_means_the_defaults(tmp_path: P
     assert read_table(write_doc(tmp_path, doc)).extension_context is None
 
 
-def test_transition_tail_round_trips_and_absent_means_exponential(tmp_path: Path) -> None:
-    base = make_table([1e6, 2e5], [0.1, 0.3])
-    params = dataclasses.replace(base.params, transition_tail=0.7, transition_exponent=1.3)
-    write_table(tmp_path / "t.json", dataclasses.replace(base, params=params))
-    back = read_table(tmp_path / "t.json").params
-    assert (back.transition_tail, back.transition_exponent) == (0.7, 1.3)
-    speeds = np.geomspace(1e-6, 1e-1, 30)
-    np.testing.assert_array_equal(back.level(speeds), params.level(speeds))
-    doc = good_doc()
-    del doc["velocity_level"]["transition_tail"]  # a table written before the key existed
-    assert read_table(write_doc(tmp_path, doc)).params.transition_tail == 0.0
-    doc["velocity_level"]["transition_tail"] = -0.5
-    with pytest.raises(TableError, match="transition_tail"):
-        read_table(write_doc(tmp_path, doc))
-
-
 @pytest.mark.parametrize(
     ("value", "field"),
     [

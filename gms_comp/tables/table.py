@@ -6,7 +6,7 @@ carrying their units::
     {"format": "gms-comp-table", "format_version": 1, "gms_comp_version": "0.1.0",
      "units": {...}, "elements": N, "stiffness_N_per_m": [...], "limit_N": [...],
      "velocity_level": {"slip_level": 1.2, "transition_velocity_m_s": 1e-4,
-                        "transition_exponent": 2.0, "transition_tail": 0.0},
+                        "transition_exponent": 2.0},
      "attraction_rate_per_s": null,            # null: infinite (Maxwell-slip)
      "viscous_Ns_per_m": 0.0,
      "source": {"config": "...", "sha256": "..."},
@@ -78,8 +78,6 @@ MAX_SLIP_LEVEL = 10.0
 MAX_TRANSITION_VELOCITY_M_S = 1.0
 #: Transition exponent of a table's velocity level.
 MAX_TRANSITION_EXPONENT = 10.0
-#: Transition tail of a table's velocity level (0: exponential, 1: rational; optional).
-MAX_TRANSITION_TAIL = 10.0
 #: Attraction rate of a table, 1/s (null means infinite: Maxwell-slip).
 MAX_ATTRACTION_RATE_PER_S = 1e9
 #: Model extensions (catalogue effects) of a table.
@@ -163,7 +161,6 @@ def table_to_dict(table: GmsTable) -> dict[str, Any]:
             "slip_level": p.slip_level,
             "transition_velocity_m_s": p.transition_velocity_m_s,
             "transition_exponent": p.transition_exponent,
-            "transition_tail": p.transition_tail,
         },
         "attraction_rate_per_s": (
             None if math.isinf(p.attraction_rate_per_s) else p.attraction_rate_per_s
@@ -242,10 +239,7 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
         if rate is None
         else r.number(doc, "attraction_rate_per_s", True, MAX_ATTRACTION_RATE_PER_S),
         viscous_Ns_per_m=r.number(doc, "viscous_Ns_per_m", False, MAX_VISCOUS_NS_PER_M),
-        # absent from tables written before it: the exponential tail
-        transition_tail=r.number(level, "velocity_level.transition_tail", False,
-                                 MAX_TRANSITION_TAIL) if "transition_tail" in level else 0.0,
-    )  # fmt: skip
+    )
     source = r.get(doc, "source")
     fidelity = r.get(doc, "fidelity")
     return GmsTable(

@@ -68,8 +68,7 @@ TRANSITION_FRACTIONS = (1 / 5000, 1 / 10)
 TRANSITION_POINTS = 8
 MAX_TRANSITION_M_S = 2e-3
 REFINE_ROUNDS = 12
-# C_v +-, v_t and exponent x/, tail +-
-REFINE_STEPS = ((0.1, 2.0, 0.5), (0.05, 1.4, 0.25), (0.02, 1.15, 0.1))
+REFINE_STEPS = ((0.1, 2.0), (0.05, 1.4), (0.02, 1.15))  # C_v +-, v_t and exponent x/
 # The level's shape: the seed's Gaussian approach (exponent 2) first, then coordinate
 # steps down to an exponential one. A level that approaches C_v slowly, over a decade of
 # speed (1 + (C_v - 1) q / (1 + q), q = (v / v_t)^2, on an independent generator: 10 %
@@ -77,16 +76,6 @@ REFINE_STEPS = ((0.1, 2.0, 0.5), (0.05, 1.4, 0.25), (0.02, 1.15, 0.1))
 # and a viscous term took it (c = 15 N s/m on an effect-free trace); the exponential
 # shape is within a few per cent of it from v_t up.
 EXPONENT_RANGE = (1.0, 2.0)
-# And its tail (GmsParams.transition_tail): the grid tries both ends, the exponential (0)
-# and the rational law 1 / (1 + (v / v_t)^delta) of Al-Bender's GMS paper (1), then
-# coordinate steps between them (stepped from the exponential end alone, the search
-# stopped at tail 1, exponent 1, 6 % above the truth's training RMS on an independent
-# trace, and held out 10 % worse than the exponential's). A
-# stretched exponential cannot follow an algebraic approach: fitted to 1 / (1 + u^2) over
-# u = 0.05-60 it is 5 % of C_v - 1 off everywhere; on an independent trace (C_v 1.23,
-# v_t 0.65 mm/s) the level was still rising 0.4 N between 2 and 10 mm/s where the
-# exponential had settled, and a viscous term took the rise (c = 125 N s/m for a true 71).
-TAIL_RANGE = (0.0, 1.0)
 # The element grid in two passes: COARSE_ELEMENTS over the whole range of break-aways
 # (position resolution to a tenth of the stroke) find where the limits are; then the
 # configured number of elements over that range, widened by one coarse spacing either
@@ -147,7 +136,6 @@ class Baseline:
             "slip_level": self.gms.slip_level,
             "transition_velocity_m_s": self.gms.transition_velocity_m_s,
             "transition_exponent": self.gms.transition_exponent,
-            "transition_tail": self.gms.transition_tail,
             "sliding_force_N": self.sliding_force_N,
             "presliding_m": self.presliding_m,
             "mass_kg": float(self.theta[self.n_gms]) if self.prepared.drive else 0.0,
@@ -202,23 +190,22 @@ def fit_free(
     fall beside it could not be kept)."""
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in prepared.parts)
     vt_range = _transition_range(vmax)
-    cache: dict[tuple[float, ...], float] = {}
+    cache: dict[tuple[float, float, float], float] = {}
 
     def cost(level: Level) -> float:
-        key = (round(level[0], 6), round(level[1], 12), round(level[2], 6), round(level[3], 6))
+        key = (round(level[0], 6), round(level[1], 12), round(level[2], 6))
         if key not in cache:
             cache[key] = _fit(prepared, FreeBasis(breakaway_m, *level), nuisance=True)[2]
         return cache[key]
 
     exponent = EXPONENT_RANGE[1]
     if start is None:
-        best = (cost((1.0, vt_range[1], exponent, 0.0)), (1.0, vt_range[1], exponent, 0.0))
+        best = (cost((1.0, vt_range[1], exponent)), (1.0, vt_range[1], exponent))
         for cv in SLIP_LEVELS:
             for vt in np.geomspace(*vt_range, TRANSITION_POINTS):
-                for tail in TAIL_RANGE:
-                    level = (cv, float(vt), exponent, tail)
-                    best = min(best, (cost(level), level))
-        steps: tuple[tuple[float, float, float], ...] = REFINE_STEPS
+                level = (cv, float(vt), exponent)
+                best = min(best, (cost(level), level))
+        steps: tuple[tuple[float, float], ...] = REFINE_STEPS
     else:
         level = _level_of(start)
         best = (cost(level), level)
@@ -227,30 +214,29 @@ def fit_free(
     return FreeBasis(breakaway_m, *best[1])
 
 
-Level = tuple[float, float, float, float]  # C_v, v_t, exponent, tail
+Level = tuple[float, float, float]  # C_v, v_t, exponent
 
 
 def _level_of(basis: FreeBasis) -> Level:
-    return (basis.slip_level, basis.transition_velocity_m_s, basis.transition_exponent,
-            basis.transition_tail)  # fmt: skip
+    return basis.slip_level, basis.transition_velocity_m_s, basis.transition_exponent
 
 
 def _coordinate_steps(
     best: tuple[float, Level], cost: Callable[[Level], float],
-    steps: tuple[tuple[float, float, float], ...], vt_range: tuple[float, float],
+    steps: tuple[tuple[float, float], ...], vt_range: tuple[float, float],
 ) -> tuple[float, Level]:  # fmt: skip
-    """Coordinate steps (``steps``: C_v +-, v_t and exponent x/, tail +-) from ``best``
-    (cost, level) while they lower ``cost``, at most ``REFINE_ROUNDS`` rounds in all;
+    """Coordinate steps (``steps``: C_v +-, v_t and exponent x/) from ``best`` (cost,
+    level) while they lower ``cost``, at most ``REFINE_ROUNDS`` rounds in all;
     then C_v at the vertex of the parabola through the squared costs at the last C_v
     step either side, if lower. The cost is sharp in C_v (it sets the sliding force
     every element carries): on an independent trace 1.08, 1.09 and 1.10 cost 0.0288,
     0.0268 and 0.0277 N, and the steps of 0.02 stopped at 1.10 (truth 1.086)."""
     rounds = 0
-    for d_cv, factor, d_tail in steps:
+    for d_cv, factor in steps:
         while rounds < REFINE_ROUNDS:
             rounds += 1
             before = best
-            for level in _neighbours(best[1], d_cv, factor, d_tail, vt_range):
+            for level in _neighbours(best[1], d_cv, factor, vt_range):
                 if level != best[1]:  # a step clipped at a bound
                     best = min(best, (cost(level), level))
             if best == before:
@@ -264,16 +250,16 @@ def _slip_level_vertex(
     """``best`` or the level with C_v at the vertex of the parabola through the squared
     costs at C_v and C_v +- ``d_cv`` (within the step and the bounds), whichever costs
     less."""
-    cv, vt, ex, tail = best[1]
+    cv, vt, ex = best[1]
     lo, hi = SLIP_LEVEL_RANGE
     if not lo + d_cv <= cv <= hi - d_cv:
         return best
-    c_lo, c_hi = (cost((cv + d, vt, ex, tail)) ** 2 for d in (-d_cv, d_cv))
+    c_lo, c_hi = (cost((cv + d, vt, ex)) ** 2 for d in (-d_cv, d_cv))
     curvature = c_lo - 2.0 * best[0] ** 2 + c_hi
     if curvature <= 0.0:
         return best
     shift = float(np.clip(0.5 * d_cv * (c_lo - c_hi) / curvature, -d_cv, d_cv))
-    level = (cv + shift, vt, ex, tail)
+    level = (cv + shift, vt, ex)
     return min(best, (cost(level), level))
 
 
@@ -283,19 +269,16 @@ def _transition_range(vmax: float, cap: float = MAX_TRANSITION_M_S) -> tuple[flo
 
 
 def _neighbours(
-    level: Level, d_cv: float, factor: float, d_tail: float, vt_range: tuple[float, float]
+    level: Level, d_cv: float, factor: float, vt_range: tuple[float, float]
 ) -> list[Level]:
-    """One coordinate step either way from (C_v, v_t, exponent, tail), inside the bounds."""
-    cv, vt, ex, tail = level
+    """One coordinate step either way from (C_v, v_t, exponent), inside the bounds."""
+    cv, vt, ex = level
     lo, hi = SLIP_LEVEL_RANGE
     return (
-        [(min(max(cv + d, lo), hi), vt, ex, tail) for d in (-d_cv, d_cv)]
-        + [(cv, min(max(vt * f, vt_range[0]), vt_range[1]), ex, tail)
+        [(min(max(cv + d, lo), hi), vt, ex) for d in (-d_cv, d_cv)]
+        + [(cv, min(max(vt * f, vt_range[0]), vt_range[1]), ex) for f in (1 / factor, factor)]
+        + [(cv, vt, min(max(ex * f, EXPONENT_RANGE[0]), EXPONENT_RANGE[1]))
            for f in (1 / factor, factor)]
-        + [(cv, vt, min(max(ex * f, EXPONENT_RANGE[0]), EXPONENT_RANGE[1]), tail)
-           for f in (1 / factor, factor)]
-        + [(cv, vt, ex, min(max(tail + d, TAIL_RANGE[0]), TAIL_RANGE[1]))
-           for d in (-d_tail, d_tail)]
     )  # fmt: skip
 
 
