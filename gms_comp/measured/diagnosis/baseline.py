@@ -4,13 +4,12 @@ The blind baseline is a free NNLS GMS that carries the seed's velocity dependenc
 sliding level C_v >= 1 above the stick level, reached over a transition velocity v_t
 (../shared/spec/physics.md), fitted jointly with the element limits: for each (C_v, v_t)
 the limits are a non-negative least-squares fit, and (C_v, v_t) are searched on a
-bounded grid and refined by a bounded number of coordinate steps; the elements the
-grid's fit keeps are then moved off the grid (free knots, :func:`refine_knots`) and
-(C_v, v_t) stepped again. A trace whose only
-departure from a GMS is C_v is therefore explained by the baseline (``none``), not
-handed to a catalogue effect. Given a GMS table (from the user's bearing), its level,
-presliding scale and velocity dependence are calibrated instead (:mod:`.basis`), and the
-table is the baseline if its held-out RMS is within ``table_margin`` of the free GMS's.
+bounded grid and refined by bounded coordinate steps; the elements the grid's fit keeps
+are then moved off the grid (free knots, :func:`refine_knots`) and (C_v, v_t) stepped
+again. A trace whose only departure from a GMS is C_v is therefore ``none``. Given a GMS
+table (from the user's bearing), its level, presliding scale and velocity dependence are
+calibrated instead (:mod:`.basis`), and the table is the baseline if its held-out RMS is
+within ``table_margin`` of the free GMS's.
 """
 
 from __future__ import annotations
@@ -46,19 +45,16 @@ from gms_comp.runtime import effects as fx
 
 Basis = FreeBasis | TableBasis
 
-# The slip level's search: C_v on this grid (1 first: no velocity dependence; 1.05, as a
-# C_v of 1.047 fell between 1 and 1.15 and, with no steps from 1, was fitted as 1 and
-# left a velocity-dependent residual that was named stribeck on an effect-free trace), v_t
-# on a log grid of TRANSITION_POINTS (a factor 2-3 apart: 4 points, a factor 6-8 apart,
-# and C_v without 1.25 left an independent effect-free trace's search at C_v 1.36,
-# v_t 1.5 mm/s for a truth of 1.29, 0.77 mm/s, held out 10 % above the noise, and a
-# stribeck term was named), then at most REFINE_ROUNDS rounds of coordinate steps inside
-# the bounds. The seed's transition from stick to full slip happens well below the sliding
-# speeds of an identification trace: v_t is at most a tenth of the top speed (the
-# level is then within 2 % of C_v at a fifth of it), so that the slip level cannot stand
-# in for a viscous law over the trace's speeds, and at most MAX_TRANSITION_M_S: the
-# contact goes from stick to full slip at micro-slip speeds (the seed: at the stop; a
-# table's default 1 um/s), so a level that keeps changing above a few mm/s is the
+# The slip level's search: C_v on this grid (1 first; 1.05: a C_v of 1.047 was fitted as
+# 1 and stribeck named on an effect-free trace), v_t on a log grid (2-3 x apart; 6-8 x
+# apart and without C_v 1.25, a search stopped at C_v 1.36, v_t 1.5 mm/s for a truth's
+# 1.29, 0.77 mm/s, and stribeck was named), then at most REFINE_ROUNDS rounds of
+# coordinate steps inside the bounds. The seed's transition from stick to full slip
+# happens well below the sliding speeds of an identification trace: v_t is at most a
+# tenth of the top speed (the level is then within 2 % of C_v at a fifth of it), so that
+# the slip level cannot stand in for a viscous law over the trace's speeds, and at most
+# MAX_TRANSITION_M_S: the contact goes from stick to full slip at micro-slip speeds (the
+# seed: at the stop; a table's 1 um/s), so a level that keeps changing above a few mm/s is the
 # catalogue's (stribeck, viscous) - with v_t free up to 10 mm/s, C_v rising over it and a
 # Stribeck fall traded against each other (ratio - 1 off by 50 % on an independent trace).
 SLIP_LEVELS = (1.05, 1.15, 1.25, 1.4, 1.9)
@@ -87,10 +83,9 @@ SUPPORT_SHARE = 0.01
 # Then the break-aways of the elements the grid fit keeps are moved off the grid (free
 # knots): coordinate steps in log(break-away) of these sizes, at most KNOT_ROUNDS rounds
 # each, every trial's limits by NNLS on the training rows, inside the grid's range. A true
-# element between two grid points is otherwise carried by both, and the forces that live
-# at an element's break-away (a dwell's raised limit) by neither: on ten independent
-# traces with a dwell gain the grid's elements correlated 0.41-0.93 with the truth's dwell
-# force, the moved ones 0.49-0.95 (8 of 10 above 0.85); the held-out RMS fell 0.2-8 %.
+# element between grid points is otherwise carried by both, and a dwell's raised limit by
+# neither: on ten independent dwell traces the grid's elements correlated 0.41-0.93 with
+# the truth's dwell force, the moved ones 0.49-0.95; the held-out RMS fell 0.2-8 %.
 KNOT_STEPS = (0.2, 0.1, 0.05)
 KNOT_ROUNDS = 6
 
@@ -178,16 +173,14 @@ def fit_free(
     prepared: Prepared, breakaway_m: FloatArray, start: FreeBasis | None = None
 ) -> FreeBasis:
     """The free basis whose slip level, transition velocity and transition shape fit
-    the training rows best, each trial's limits by non-negative least squares (bounded
-    search: a grid at the Gaussian shape, then coordinate steps; or coordinate steps from
-    those of ``start``).
+    the training rows best, each trial's limits by non-negative least squares (a grid at
+    the Gaussian shape, then coordinate steps; or coordinate steps from ``start``'s).
 
     A viscous term (c >= 0) and an offset are fitted beside them during the search and
     then dropped: the slip level takes the velocity dependence that saturates, a linear
-    one is left to the catalogue's ``viscous`` (else C_v stands in for part of it), and
-    an offset (even in the direction of motion, unlike friction) does not bend the slip
-    level either (with a third of the level as offset, C_v came out where a Stribeck
-    fall beside it could not be kept)."""
+    one is left to ``viscous`` (else C_v stands in for part of it), and an offset does not
+    bend the slip level either (with a third of the level as offset, C_v came out where
+    a Stribeck fall beside it could not be kept)."""
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in prepared.parts)
     vt_range = _transition_range(vmax)
     cache: dict[tuple[float, float, float], float] = {}
@@ -226,11 +219,8 @@ def _coordinate_steps(
     steps: tuple[tuple[float, float], ...], vt_range: tuple[float, float],
 ) -> tuple[float, Level]:  # fmt: skip
     """Coordinate steps (``steps``: C_v +-, v_t and exponent x/) from ``best`` (cost,
-    level) while they lower ``cost``, at most ``REFINE_ROUNDS`` rounds in all;
-    then C_v at the vertex of the parabola through the squared costs at the last C_v
-    step either side, if lower. The cost is sharp in C_v (it sets the sliding force
-    every element carries): on an independent trace 1.08, 1.09 and 1.10 cost 0.0288,
-    0.0268 and 0.0277 N, and the steps of 0.02 stopped at 1.10 (truth 1.086)."""
+    level) while they lower ``cost``, at most ``REFINE_ROUNDS`` rounds in all; then
+    :func:`_slip_level_vertex`."""
     rounds = 0
     for d_cv, factor in steps:
         while rounds < REFINE_ROUNDS:
@@ -248,8 +238,9 @@ def _slip_level_vertex(
     best: tuple[float, Level], cost: Callable[[Level], float], d_cv: float
 ) -> tuple[float, Level]:
     """``best`` or the level with C_v at the vertex of the parabola through the squared
-    costs at C_v and C_v +- ``d_cv`` (within the step and the bounds), whichever costs
-    less."""
+    costs at C_v +- ``d_cv`` (within the step), whichever costs less. The cost is sharp in
+    C_v: on an independent trace 1.08, 1.09, 1.10 cost 0.0288, 0.0268, 0.0277 N, and the
+    steps of 0.02 stopped at 1.10 (truth 1.086)."""
     cv, vt, ex = best[1]
     lo, hi = SLIP_LEVEL_RANGE
     if not lo + d_cv <= cv <= hi - d_cv:
@@ -319,10 +310,9 @@ def _free_basis(prepared: Prepared, n_elements: int) -> FreeBasis:
     free = fit_free(prepared, coarse)
     if n_elements <= COARSE_ELEMENTS:
         return free
-    # the coarse limits with the viscous term and the offset beside them, as in fit_free's
-    # search: on an independent trace with an offset of 12 % of the level, the coarse fit
-    # without them left no element above 8 um (the truth's widest: 26 um, 4.4 N), and the
-    # extended model missed by 5.5 N (6.5 x the noise) after every sine reversal
+    # the coarse limits with the viscous term and the offset beside them (without, an
+    # offset of 12 % of the level left no element above 8 um for a truth's 26 um, and the
+    # extended model missed by 6.5 x the noise after every sine reversal)
     _, theta, _ = _fit(prepared, free, nuisance=True)
     limits = theta[: coarse.size]
     where = np.flatnonzero(limits > SUPPORT_SHARE * max(float(np.sum(limits)), 1e-300))
