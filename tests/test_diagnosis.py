@@ -121,7 +121,9 @@ def test_table_baseline_recovers_level_and_presliding(ball_table: GmsTable) -> N
     assert b["level_factor"] == pytest.approx(LEVEL_FACTOR, rel=FACTOR_TOLERANCE)
     assert b["presliding_factor"] == pytest.approx(PRESLIDING_FACTOR, rel=FACTOR_TOLERANCE)
     assert b["slip_level_factor"] == pytest.approx(1.0, rel=FACTOR_TOLERANCE)
-    assert b["table_heldout_rms_N"] <= b["free_nnls_heldout_rms_N"]
+    # the calibrated truth fits as well as a free GMS, within 3 % (tighter than the 10 %
+    # table_margin that chose it; both leave 1.4 x the noise: the 0.1 um position steps)
+    assert b["table_heldout_rms_N"] <= 1.03 * b["free_nnls_heldout_rms_N"]
 
 
 def test_unlike_gms_falls_back_to_free_nnls(ball_table: GmsTable) -> None:
