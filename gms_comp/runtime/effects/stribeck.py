@@ -49,8 +49,9 @@ class Stribeck(Effect):
     def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
         """v_s within 1/1000 and 1/2 of the top speed: the ratio is break-away over the
         sliding level, so the trace must reach sliding (at half the top speed the bump is
-        2 % at the top speed). With v_s up to the top speed, a bump still 37 % high there
-        stood in for a slip level approaching C_v slowly: ratio 1.26 at v_s = the top
-        speed of 36 mm/s was ranked above the viscous term of an independent trace."""
+        2 % at the top speed, the grid's top). A bump still 37 % high at the top speed
+        (v_s = 36 mm/s, the bound before) was ranked above an independent trace's viscous
+        term while its top speeds were held out; with them trained on, the two bounds
+        give the same names there (prepare.TRAIN_SPEED_SHARE)."""
         vmax = top_speed(ctx)
         return {"v_s_m_per_s": (vmax / 1000, vmax / 2)}
