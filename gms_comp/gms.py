@@ -31,6 +31,7 @@ over a whole trajectory, :class:`GmsStream` calls it once per sample.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -134,6 +135,14 @@ class GmsParams:
         x = np.asarray(displacement_m, dtype=float)
         shape = element_shape(np.abs(x), self.limit_N / self.stiffness_N_per_m, level)
         return np.sign(x) * (shape @ self.stiffness_N_per_m)
+
+
+def scaled(params: GmsParams, level: float, presliding: float, **fields: float) -> GmsParams:
+    """``params`` with every W_i times ``level`` and every break-away W_i / k_i times
+    ``presliding`` (and any scalar field replaced). A zero level keeps k_i > 0."""
+    w = params.limit_N * level
+    k = params.stiffness_N_per_m * (max(level, 1e-300) / presliding)
+    return dataclasses.replace(params, stiffness_N_per_m=k, limit_N=w, **fields)
 
 
 def element_shape(displacement_m: FloatArray, breakpoint_m: FloatArray, level: float) -> FloatArray:
@@ -283,6 +292,17 @@ def _run_elements(
 # --- the two interfaces ---------------------------------------------------------------
 
 
+def _path(position_m: ArrayLike, velocity_m_s: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Position and velocity as contiguous float64 vectors of one length."""
+    x = np.ascontiguousarray(position_m, dtype=np.float64)
+    v = np.ascontiguousarray(velocity_m_s, dtype=np.float64)
+    if x.ndim != 1 or x.shape != v.shape:
+        raise ValueError(
+            f"position_m and velocity_m_s must be 1-D of equal length, got {x.shape} and {v.shape}"
+        )
+    return x, v
+
+
 def simulate(
     params: GmsParams,
     position_m: ArrayLike,
@@ -315,12 +335,7 @@ def simulate(
     >>> np.round(f, 3).tolist()
     [0.0, 0.05, 0.1]
     """
-    x = np.ascontiguousarray(position_m, dtype=np.float64)
-    v = np.ascontiguousarray(velocity_m_s, dtype=np.float64)
-    if x.ndim != 1 or x.shape != v.shape:
-        raise ValueError(
-            f"position_m and velocity_m_s must be 1-D of equal length, got {x.shape} and {v.shape}"
-        )
+    x, v = _path(position_m, velocity_m_s)
     new = GmsState.virgin(params.n_elements) if state is None else state.copy()
     out = np.empty_like(x)
     if x.size:
@@ -352,12 +367,7 @@ def simulate_elements(
     >>> np.round(simulate_elements(p, [0.0, 5e-8, 1e-6], [0.0, 1e-3, 1e-3]), 3).tolist()
     [[0.0, 0.0], [0.05, 0.005], [0.1, 0.1]]
     """
-    x = np.ascontiguousarray(position_m, dtype=np.float64)
-    v = np.ascontiguousarray(velocity_m_s, dtype=np.float64)
-    if x.ndim != 1 or x.shape != v.shape:
-        raise ValueError(
-            f"position_m and velocity_m_s must be 1-D of equal length, got {x.shape} and {v.shape}"
-        )
+    x, v = _path(position_m, velocity_m_s)
     out = np.empty((x.size, params.n_elements))
     if x.size:
         _run_elements(params.stiffness_N_per_m, params.limit_N, params.scalars, x, v, out)

@@ -9,7 +9,6 @@ independent generator (tests/indepgen.py) that shares no code with the project.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -112,10 +111,3 @@ def measure(
         np.round(noisy / adc_step) * adc_step,
         np.round(position_m / position_resolution_m) * position_resolution_m,
     )
-
-
-def scaled_gms(params: GmsParams, level: float, presliding: float) -> GmsParams:
-    """``params`` with every limit W_i times ``level`` and every break-away W_i / k_i
-    times ``presliding``: a machine whose guides match a table up to these factors."""
-    k = params.stiffness_N_per_m * (level / presliding)
-    return dataclasses.replace(params, stiffness_N_per_m=k, limit_N=params.limit_N * level)

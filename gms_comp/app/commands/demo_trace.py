@@ -23,7 +23,7 @@ import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.atomic import write_text
-from gms_comp.gms import GmsParams
+from gms_comp.gms import GmsParams, scaled
 from gms_comp.measured.traces import Trace
 from gms_comp.runtime import effects as fx
 from gms_comp.validation import output_file
@@ -112,7 +112,7 @@ def scaled_table_trace(
     """A friction trace of ``table`` with its level and presliding length scaled, over the
     identification profile, with 1 % noise and 0.1 um position steps: a machine whose
     guides match the catalogue table up to the factors a calibration must find."""
-    truth = tracegen.truth(tracegen.scaled_gms(table, level, presliding), scale)
+    truth = tracegen.truth(scaled(table, level, presliding), scale)
     noise = 0.01 * truth.sliding_force_N
     force = truth.gms_force_N + np.random.default_rng(seed).normal(0.0, noise, len(truth.time_s))
     x = np.round(truth.position_m, 7)

@@ -15,6 +15,7 @@ within ``table_margin`` of the free GMS's.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -41,37 +42,20 @@ from gms_comp.measured.diagnosis.design import (
     train_rms,
 )
 from gms_comp.measured.diagnosis.prepare import Part, Prepared
+from gms_comp.measured.diagnosis.slip_level import (
+    EXPONENT_RANGE,
+    REFINE_STEPS,
+    SLIP_LEVELS,
+    TRANSITION_POINTS,
+    Level,
+    coordinate_steps,
+    level_of,
+    transition_range,
+)
 from gms_comp.runtime import effects as fx
 
 Basis = FreeBasis | TableBasis
 
-# The slip level's search: C_v on this grid (1 first; 1.05: a C_v of 1.047 was fitted as
-# 1 and stribeck named on an effect-free trace), v_t on a log grid (2-3 x apart; 6-8 x
-# apart and without C_v 1.25, a search stopped at C_v 1.36, v_t 1.5 mm/s for a truth's
-# 1.29, 0.77 mm/s, and stribeck was named), then at most REFINE_ROUNDS rounds of
-# coordinate steps inside the bounds. The seed's transition from stick to full slip
-# happens well below the sliding speeds of an identification trace: v_t is at most a
-# tenth of the top speed (the level is then within 2 % of C_v at a fifth of it), so that
-# the slip level cannot stand in for a viscous law over the trace's speeds, and at most
-# MAX_TRANSITION_M_S: the contact goes from stick to full slip at micro-slip speeds (the
-# seed: at the stop; a table's 1 um/s), so a level that keeps changing above a few mm/s is the
-# catalogue's (stribeck, viscous) - with v_t free up to 10 mm/s, C_v rising over it and a
-# Stribeck fall traded against each other (ratio - 1 off by 50 % on an independent trace).
-SLIP_LEVELS = (1.05, 1.15, 1.25, 1.4, 1.9)
-SLIP_LEVEL_RANGE = (1.0, 3.0)
-MIN_TRANSITION_M_S = 1e-7
-TRANSITION_FRACTIONS = (1 / 5000, 1 / 10)
-TRANSITION_POINTS = 8
-MAX_TRANSITION_M_S = 2e-3
-REFINE_ROUNDS = 12
-REFINE_STEPS = ((0.1, 2.0), (0.05, 1.4), (0.02, 1.15))  # C_v +-, v_t and exponent x/
-# The level's shape: the seed's Gaussian approach (exponent 2) first, then coordinate
-# steps down to an exponential one. A level that approaches C_v slowly, over a decade of
-# speed (1 + (C_v - 1) q / (1 + q), q = (v / v_t)^2, on an independent generator: 10 %
-# short at 3 v_t), is 0.2-0.3 N above a Gaussian onset up to 30 mm/s on a 22 N level,
-# and a viscous term took it (c = 15 N s/m on an effect-free trace); the exponential
-# shape is within a few per cent of it from v_t up.
-EXPONENT_RANGE = (1.0, 2.0)
 # The element grid in two passes: COARSE_ELEMENTS over the whole range of break-aways
 # (position resolution to a tenth of the stroke) find where the limits are; then the
 # configured number of elements over that range, widened by one coarse spacing either
@@ -182,7 +166,7 @@ def fit_free(
     bend the slip level either (with a third of the level as offset, C_v came out where
     a Stribeck fall beside it could not be kept)."""
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in prepared.parts)
-    vt_range = _transition_range(vmax)
+    vt_range = transition_range(vmax)
     cache: dict[tuple[float, float, float], float] = {}
 
     def cost(level: Level) -> float:
@@ -200,77 +184,11 @@ def fit_free(
                 best = min(best, (cost(level), level))
         steps: tuple[tuple[float, float], ...] = REFINE_STEPS
     else:
-        level = _level_of(start)
+        level = level_of(start)
         best = (cost(level), level)
         steps = REFINE_STEPS[1:]
-    best = _coordinate_steps(best, cost, steps, vt_range)
+    best = coordinate_steps(best, cost, steps, vt_range)
     return FreeBasis(breakaway_m, *best[1])
-
-
-Level = tuple[float, float, float]  # C_v, v_t, exponent
-
-
-def _level_of(basis: FreeBasis) -> Level:
-    return basis.slip_level, basis.transition_velocity_m_s, basis.transition_exponent
-
-
-def _coordinate_steps(
-    best: tuple[float, Level], cost: Callable[[Level], float],
-    steps: tuple[tuple[float, float], ...], vt_range: tuple[float, float],
-) -> tuple[float, Level]:  # fmt: skip
-    """Coordinate steps (``steps``: C_v +-, v_t and exponent x/) from ``best`` (cost,
-    level) while they lower ``cost``, at most ``REFINE_ROUNDS`` rounds in all; then
-    :func:`_slip_level_vertex`."""
-    rounds = 0
-    for d_cv, factor in steps:
-        while rounds < REFINE_ROUNDS:
-            rounds += 1
-            before = best
-            for level in _neighbours(best[1], d_cv, factor, vt_range):
-                if level != best[1]:  # a step clipped at a bound
-                    best = min(best, (cost(level), level))
-            if best == before:
-                break
-    return _slip_level_vertex(best, cost, steps[-1][0])
-
-
-def _slip_level_vertex(
-    best: tuple[float, Level], cost: Callable[[Level], float], d_cv: float
-) -> tuple[float, Level]:
-    """``best`` or the level with C_v at the vertex of the parabola through the squared
-    costs at C_v +- ``d_cv`` (within the step), whichever costs less. The cost is sharp in
-    C_v: on an independent trace 1.08, 1.09, 1.10 cost 0.0288, 0.0268, 0.0277 N, and the
-    steps of 0.02 stopped at 1.10 (truth 1.086)."""
-    cv, vt, ex = best[1]
-    lo, hi = SLIP_LEVEL_RANGE
-    if not lo + d_cv <= cv <= hi - d_cv:
-        return best
-    c_lo, c_hi = (cost((cv + d, vt, ex)) ** 2 for d in (-d_cv, d_cv))
-    curvature = c_lo - 2.0 * best[0] ** 2 + c_hi
-    if curvature <= 0.0:
-        return best
-    shift = float(np.clip(0.5 * d_cv * (c_lo - c_hi) / curvature, -d_cv, d_cv))
-    level = (cv + shift, vt, ex)
-    return min(best, (cost(level), level))
-
-
-def _transition_range(vmax: float, cap: float = MAX_TRANSITION_M_S) -> tuple[float, float]:
-    hi = max(min(vmax * TRANSITION_FRACTIONS[1], cap), 10 * MIN_TRANSITION_M_S)
-    return max(vmax * TRANSITION_FRACTIONS[0], MIN_TRANSITION_M_S), hi
-
-
-def _neighbours(
-    level: Level, d_cv: float, factor: float, vt_range: tuple[float, float]
-) -> list[Level]:
-    """One coordinate step either way from (C_v, v_t, exponent), inside the bounds."""
-    cv, vt, ex = level
-    lo, hi = SLIP_LEVEL_RANGE
-    return (
-        [(min(max(cv + d, lo), hi), vt, ex) for d in (-d_cv, d_cv)]
-        + [(cv, min(max(vt * f, vt_range[0]), vt_range[1]), ex) for f in (1 / factor, factor)]
-        + [(cv, vt, min(max(ex * f, EXPONENT_RANGE[0]), EXPONENT_RANGE[1]))
-           for f in (1 / factor, factor)]
-    )  # fmt: skip
 
 
 def fit_baseline(prepared: Prepared, cfg: DiagnosisConfig, table: GmsParams | None) -> Baseline:
@@ -441,10 +359,14 @@ def refine_slip_level(
     # with the kept effects present the cap is lifted (a tenth of the top speed): on the
     # EMPS ball screw the extended model's level keeps rising above 2 mm/s (capped, the
     # benchmark's training error went from 2.48 % to 2.69 %)
-    vt_range = _transition_range(vmax, np.inf)
-    best = _coordinate_steps(
-        (cost(baseline.parts), _level_of(basis)),
-        lambda level: cost(rebased(baseline, FreeBasis(basis.breakaway_m, *level))),
-        REFINE_STEPS, vt_range,
-    )  # fmt: skip
+    vt_range = transition_range(vmax, np.inf)
+
+    # a level met again (a step back, the vertex's C_v +- step) is not refitted
+    @functools.cache
+    def level_cost(level: Level) -> float:
+        return cost(rebased(baseline, FreeBasis(basis.breakaway_m, *level)))
+
+    best = coordinate_steps(
+        (cost(baseline.parts), level_of(basis)), level_cost, REFINE_STEPS, vt_range
+    )
     return FreeBasis(basis.breakaway_m, *best[1])

@@ -20,7 +20,6 @@ kernel (:func:`gms_comp.gms.simulate`) with one unit element.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -29,7 +28,7 @@ import numpy as np
 from scipy import optimize
 
 from gms_comp.arrays import BoolArray, FloatArray
-from gms_comp.gms import GmsParams, simulate, simulate_elements
+from gms_comp.gms import GmsParams, scaled, simulate, simulate_elements
 from gms_comp.measured.diagnosis.design import solve
 from gms_comp.measured.diagnosis.motion import Kinematics
 
@@ -111,14 +110,6 @@ class Samples:
     kin: Kinematics
     force_N: FloatArray
     train: BoolArray
-
-
-def scaled(params: GmsParams, level: float, presliding: float, **scalars: float) -> GmsParams:
-    """``params`` with every W_i times ``level`` and every break-away W_i / k_i times
-    ``presliding`` (and any scalar field replaced). A zero level keeps k_i > 0."""
-    w = params.limit_N * level
-    k = params.stiffness_N_per_m * (max(level, 1e-300) / presliding)
-    return dataclasses.replace(params, stiffness_N_per_m=k, limit_N=w, **scalars)
 
 
 def calibrate_table(table: GmsParams, samples: Sequence[Samples], drive: bool) -> TableBasis:
