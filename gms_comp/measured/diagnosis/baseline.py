@@ -110,6 +110,9 @@ class Baseline:
             "model": "free_nnls_gms" if isinstance(self.basis, FreeBasis) else "table_gms",
             **self.info,
             "force_kind": self.prepared.force_kind,
+            "position": "encoder counts read as motion"
+            if self.prepared.dequantised
+            else "measured",
             "breakaway_m": self.basis.breakaway_m.tolist(),
             "limit_N": self.gms.limit_N.tolist(),
             "slip_level": self.gms.slip_level,

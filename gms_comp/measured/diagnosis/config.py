@@ -16,6 +16,15 @@ class DiagnosisConfig:
     # reversal takes a few samples), the benchmark's 100 Hz for a drive force (it needs
     # an acceleration).
     filter_cutoff_Hz: float = field(default=0.0, metadata=in_range(0.0, 1e9))
+    # The kinematics come from the encoder's counts read as motion (a count passed
+    # between crossings of its half, :func:`.motion.dequantised`) if the counts show in
+    # the GMS driven by them (its stiffness over a count's error, K q / sqrt 12, is at
+    # least this many times the force noise) and the baseline then holds out better by
+    # ``margin``. On 20 independent traces the ratio was 0.01-0.45 but one: 1.35 (a 27 nm
+    # encoder, held out 1.23 x the noise on the counts, 1.07 x read as motion, 1.01 x on
+    # the unquantised position); on the project's own traces (0.1 um counts at 1 kHz)
+    # 3.8, and read as motion they hold out 0.6 % better only. 0: always tried; 1e9: never.
+    encoder_noise_ratio: float = field(default=0.7, metadata=in_range(0.0, 1e9))
     # Elements of the free GMS, on a dense grid over the break-aways a coarse pass of 8
     # found (8 or fewer: one pass over the whole range); the ones the fit keeps are then
     # moved off the grid to the break-aways that fit best.
