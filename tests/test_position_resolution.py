@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from indepgen import baseline, make_trace
 
+from gms_comp.app.commands.diagnose import summary
 from gms_comp.measured.diagnosis.motion import dequantised
 from gms_comp.measured.diagnosis.prepare import encoder_step, force_noise, position_resolution
 from gms_comp.measured.diagnosis.run import diagnose
@@ -97,3 +98,5 @@ def test_a_coarse_encoder_is_read_as_motion_and_a_fine_one_is_not() -> None:
         assert doc["baseline"]["encoder_noise_ratio"] == pytest.approx(ratio, rel=0.05)
         assert doc["baseline"]["position"] == expected
         assert doc["effect"] == "none"
+        said = "the encoder's counts read as motion" in summary(doc, gen.time_s.size, "friction")
+        assert said == (seed == 119)

@@ -177,8 +177,13 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
         f"baseline: {b['model'].replace('_', ' ')}, sliding force {b['sliding_force_N']:.4g} N, "
         f"slip level C_v {b['slip_level']:.3g}, held-out RMS {doc['baseline_rms_N']:.4g} N "
         f"(noise {doc['noise_rms_N']:.3g} N)",
-        "where the baseline is wrong (residual RMS by motion phase):",
     ]
+    if b.get("position") == "encoder counts read as motion":
+        lines.append(
+            f"position: the encoder's counts read as motion (a count moves the model "
+            f"{b['encoder_noise_ratio']:.2g} x the force noise)"
+        )
+    lines.append("where the baseline is wrong (residual RMS by motion phase):")
     phases = sorted(doc["phases"].items(), key=lambda kv: -kv[1]["rms_N"])
     for key, ph in phases[:6]:
         lines.append(
