@@ -12,6 +12,7 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import stats
 
 from gms_comp.arrays import BoolArray, FloatArray, IntArray
 from gms_comp.gms import GmsParams
@@ -97,19 +98,14 @@ def position_resolution(position_m: FloatArray) -> float:
     The percentile alone read a 39 nm encoder as 0.43 um on an independent trace whose
     motion is mostly fast (11 x; 4-38 x on six of ten such traces), which put the free
     GMS's smallest break-away above the true ones and the reversal deadband at 0.26 um."""
-    steps = np.abs(np.diff(position_m))
-    steps = steps[steps > 0]
-    if steps.size == 0:
-        return 0.0
-    return encoder_step(position_m) or float(np.percentile(steps, 5))
+    return encoder_step(position_m) or _step_percentile(position_m)
 
 
 def encoder_step(position_m: FloatArray) -> float:
     """The encoder's step when the position's steps are whole multiples of one (the
     smallest step seen at least ``STEP_SHARE`` of the time, within ``STEP_TOLERANCE``,
     among the smallest 5 %); 0 when they are not."""
-    steps = np.abs(np.diff(position_m))
-    steps = steps[steps > 0]
+    steps = _steps(position_m)
     if steps.size == 0:
         return 0.0
     percentile = float(np.percentile(steps, 5))
@@ -123,6 +119,16 @@ def encoder_step(position_m: FloatArray) -> float:
     return 0.0
 
 
+def _steps(position_m: FloatArray) -> FloatArray:
+    steps = np.abs(np.diff(position_m))
+    return steps[steps > 0]
+
+
+def _step_percentile(position_m: FloatArray) -> float:
+    steps = _steps(position_m)
+    return float(np.percentile(steps, 5)) if steps.size else 0.0
+
+
 def force_noise(force_N: FloatArray) -> float:
     """The force's white noise (standard deviation), from the median absolute deviation
     of its second differences (sqrt 6 x the noise; a friction force's own second
@@ -131,7 +137,7 @@ def force_noise(force_N: FloatArray) -> float:
     d2 = np.diff(force_N, 2)
     if d2.size == 0:
         return 0.0
-    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0))
+    return float(stats.median_abs_deviation(d2, scale="normal")) / np.sqrt(6.0)
 
 
 def encoder_force_ratio(gms: GmsParams, prepared: Prepared) -> float:
@@ -161,11 +167,12 @@ def prepare(
     """
     drive = force_kind == "drive"
     cutoff = cfg.filter_cutoff_Hz or (DRIVE_CUTOFF_HZ if drive else 0.45 / trace.sample_time_s)
-    resolution = position_resolution(trace.position_m)
+    step = encoder_step(trace.position_m)
+    resolution = step or _step_percentile(trace.position_m)
     # a drive force's kinematics are the benchmark's (one 100 Hz low-pass for all)
     accel_cutoff = DRIVE_CUTOFF_HZ if drive else acceleration_cutoff(trace, resolution)
-    step = encoder_step(trace.position_m)
-    if dequantise and step > 0.0:
+    read = dequantise and step > 0.0
+    if read:
         trace = _dequantised(trace, step)
         validation = None if validation is None else _dequantised(validation, step)
     kin = kinematics(trace, cutoff, accel_cutoff)
@@ -189,8 +196,7 @@ def prepare(
         )
     rest_band = cfg.rest_band_steps * resolution
     return Prepared(
-        parts, drive, force_kind, still, deadband, resolution, rest_band, step,
-        dequantise and step > 0.0,
+        parts, drive, force_kind, still, deadband, resolution, rest_band, step, read
     )  # fmt: skip
 
 
