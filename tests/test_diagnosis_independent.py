@@ -120,3 +120,20 @@ def test_dwell_windows_are_computed_at_the_fitted_gain(seed: int, trace_dir: Pat
         pytest.skip("dwell_time not named (see test_catalogue_effect_is_named_first)")
     ratio = params["reach"] / params["gamma"]
     assert 1 / 1.1 <= ratio <= 1.1, _describe(gen, outcome)
+
+
+def test_a_small_dwell_gain_is_judged_by_its_significance(trace_dir: Path) -> None:
+    # seed 118: a gain of 0.09 (peaks 3 x the noise): the fitted 0.11 lowers the RMS at
+    # the starts by 18 % with z 4.7; the 20 % local margin before left it out
+    gen, outcome = diagnosed("dwell_time", 118, trace_dir)
+    assert outcome.named == "dwell_time", _describe(gen, outcome)
+
+
+@pytest.mark.parametrize("seed", [113, 117])
+def test_a_ripple_of_few_periods_over_the_stroke_is_named(seed: int, trace_dir: Path) -> None:
+    # 7.6 and 8.0 mm ripples on 21 and 13 mm strokes (2.8 and 1.6 periods): with the
+    # wavelength bounded by a third of the stroke they came out `unknown`
+    gen, outcome = diagnosed("position_ripple", seed, trace_dir)
+    assert outcome.named == "position_ripple", _describe(gen, outcome)
+    error = main_parameter_error(gen, outcome)
+    assert error is not None and error <= TOLERANCE["position_ripple"], _describe(gen, outcome)

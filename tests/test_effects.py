@@ -135,6 +135,22 @@ def test_ripple_coefficients_round_trip() -> None:
     assert back.phase_rad == pytest.approx(0.7)
 
 
+@pytest.mark.parametrize("periods", [1.6, 2.8, 6.0])
+def test_ripple_grid_finds_a_ripple_of_few_periods_over_the_stroke(periods: float) -> None:
+    """Over a 12 mm stroke (back and forth), a ripple of ``periods`` periods is among the
+    wavelengths the grid tries (within its fine step): 1.6 and 2.8 periods, independent
+    traces' ripples, lay beyond the third of the stroke the grid ended at before."""
+    t, x = _triangle(20000, 6e-3)
+    wavelength = 12e-3 / periods
+    residual = 0.8 * np.sin(2 * np.pi * x / wavelength + 0.4)
+    ctx = _ctx(t, x)
+    tried = [s["wavelength_m"] for s in fx.PositionRipple.shape_grid(ctx, residual, 1e-6)]
+    nearest = min(tried, key=lambda w: abs(np.log(w / wavelength)))
+    assert nearest == pytest.approx(wavelength, rel=0.01)
+    low, high = fx.PositionRipple.shape_bounds(ctx, 1e-6)["wavelength_m"]
+    assert low < wavelength <= high
+
+
 def test_ripple_form_matches_spec() -> None:
     t = np.linspace(0, 1, 500)
     x = 0.01 * t

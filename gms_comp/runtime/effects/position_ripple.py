@@ -17,6 +17,8 @@ from gms_comp.runtime.effects.path import Context
 # into position bins of at most an eighth of the shortest wavelength (at most SCAN_BINS).
 SCAN_POINTS = 600
 SCAN_BINS = 20000
+# The fewest periods of a ripple over the stroke that the diagnosis fits.
+MIN_PERIODS = 1.5
 
 
 @dataclass(frozen=True)
@@ -47,8 +49,10 @@ class PositionRipple(Effect):
 
     @classmethod
     def _range(cls, ctx: Context) -> tuple[float, float]:
-        # at least four samples per period at top speed, at most a third of the stroke
-        return max(4 * top_speed(ctx) * ctx.sample_time_s, 1e-6), stroke(ctx) / 3
+        # at least four samples per period at top speed, at most the stroke over
+        # ``MIN_PERIODS`` (a third of it missed ripples of 1.6 and 2.8 periods on two
+        # independent traces: 7-8 mm on 13-21 mm strokes)
+        return max(4 * top_speed(ctx) * ctx.sample_time_s, 1e-6), stroke(ctx) / MIN_PERIODS
 
     @classmethod
     def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
