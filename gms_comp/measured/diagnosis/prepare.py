@@ -98,35 +98,32 @@ def position_resolution(position_m: FloatArray) -> float:
     The percentile alone read a 39 nm encoder as 0.43 um on an independent trace whose
     motion is mostly fast (11 x; 4-38 x on six of ten such traces), which put the free
     GMS's smallest break-away above the true ones and the reversal deadband at 0.26 um."""
-    return encoder_step(position_m) or _step_percentile(position_m)
+    return step_and_resolution(position_m)[1]
 
 
 def encoder_step(position_m: FloatArray) -> float:
     """The encoder's step when the position's steps are whole multiples of one (the
     smallest step seen at least ``STEP_SHARE`` of the time, within ``STEP_TOLERANCE``,
     among the smallest 5 %); 0 when they are not."""
-    steps = _steps(position_m)
+    return step_and_resolution(position_m)[0]
+
+
+def step_and_resolution(position_m: FloatArray) -> tuple[float, float]:
+    """:func:`encoder_step` and :func:`position_resolution` from one pass over the
+    position's steps."""
+    steps = np.abs(np.diff(position_m))
+    steps = steps[steps > 0]
     if steps.size == 0:
-        return 0.0
+        return 0.0, 0.0
     percentile = float(np.percentile(steps, 5))
     for step in np.unique(steps[steps <= percentile]):
         if np.count_nonzero(steps <= step * (1 + STEP_TOLERANCE)) < STEP_SHARE * steps.size:
             continue
         counts = steps / step
         if np.mean(np.abs(counts - np.round(counts)) <= STEP_TOLERANCE) >= QUANTISED_SHARE:
-            return float(step)
+            return float(step), float(step)
         break
-    return 0.0
-
-
-def _steps(position_m: FloatArray) -> FloatArray:
-    steps = np.abs(np.diff(position_m))
-    return steps[steps > 0]
-
-
-def _step_percentile(position_m: FloatArray) -> float:
-    steps = _steps(position_m)
-    return float(np.percentile(steps, 5)) if steps.size else 0.0
+    return 0.0, percentile
 
 
 def force_noise(force_N: FloatArray) -> float:
@@ -167,8 +164,7 @@ def prepare(
     """
     drive = force_kind == "drive"
     cutoff = cfg.filter_cutoff_Hz or (DRIVE_CUTOFF_HZ if drive else 0.45 / trace.sample_time_s)
-    step = encoder_step(trace.position_m)
-    resolution = step or _step_percentile(trace.position_m)
+    step, resolution = step_and_resolution(trace.position_m)
     # a drive force's kinematics are the benchmark's (one 100 Hz low-pass for all)
     accel_cutoff = DRIVE_CUTOFF_HZ if drive else acceleration_cutoff(trace, resolution)
     read = dequantise and step > 0.0
