@@ -3,6 +3,9 @@ acts, white noise and smooth misfits are not (hand-made residuals, known answers
 
 from __future__ import annotations
 
+import re
+from types import SimpleNamespace
+
 import numpy as np
 
 from gms_comp.measured.diagnosis import structure as st
@@ -26,10 +29,33 @@ def test_a_bump_on_a_few_samples_is_a_spot_with_its_place_and_size() -> None:
     assert np.count_nonzero(bump) < 0.02 * x.size  # a small share of the samples
     spot = st._spot(r, x, d, NOISE)
     assert spot is not None
-    # the bin holding most of the bump (0.25 mm wide): most of its samples carry 0.8 N
-    assert 0.5 <= spot.rms_N <= 0.8
-    assert "near x = 3.125 mm" in spot.where  # the bin [3.0, 3.25) mm holds the bump
+    # a bin within the bump (bins are 0.125 mm, the bump 0.2 mm): its samples carry 0.8 N
+    assert 0.7 <= spot.rms_N <= 0.9
+    centre = float(re.search(r"near x = ([-\d.]+) mm", spot.where).group(1))  # type: ignore[union-attr]
+    assert 3.0 < centre < 3.2
     assert "forward" in spot.where
+
+
+def _part(x: np.ndarray, d: np.ndarray, force: np.ndarray, held: np.ndarray) -> SimpleNamespace:
+    """The fields of a fitted part the spot scan reads (the model predicts 0)."""
+    ctx = SimpleNamespace(velocity_m_s=1e-3 * d, position_m=x, direction=d)
+    return SimpleNamespace(part=SimpleNamespace(force_N=force, held=held), ctx=ctx)
+
+
+def test_a_bump_outside_the_held_out_blocks_is_still_a_spot() -> None:
+    rng = np.random.default_rng(3)
+    x, d = _stroke()
+    r = rng.normal(0, NOISE, x.size)
+    held = np.zeros(x.size, dtype=bool)
+    held[: x.size // 5] = True  # the first fifth held out: one of four passes, forward
+    bump = (np.abs(x - 6.1e-3) < 0.1e-3) & (d > 0) & ~held  # crossed only where fitted
+    r[bump] += 0.8
+    part = _part(x, d, r, held)
+    spot = st._spot_everywhere([part], [np.zeros(x.size)])  # type: ignore[list-item]
+    assert spot is not None and spot.rms_N >= st.SPOT_RATIO * NOISE
+    assert "forward" in spot.where
+    held_only = st._spot(r[held], x[held], d[held], NOISE)
+    assert held_only is None or held_only.rms_N < st.SPOT_RATIO * NOISE
 
 
 def test_white_noise_and_a_smooth_level_error_are_no_spot_above_the_threshold() -> None:
