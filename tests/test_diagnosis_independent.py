@@ -137,3 +137,28 @@ def test_a_ripple_of_few_periods_over_the_stroke_is_named(seed: int, trace_dir: 
     assert outcome.named == "position_ripple", _describe(gen, outcome)
     error = main_parameter_error(gen, outcome)
     assert error is not None and error <= TOLERANCE["position_ripple"], _describe(gen, outcome)
+
+
+@pytest.mark.parametrize(("seed", "order"), [(122, 3), (128, 3)])
+def test_a_sensor_filter_s_order_is_decided_by_its_own_cutoff(
+    seed: int, order: int, trace_dir: Path
+) -> None:
+    # third-order filters fitted as fourth-order at a grid cut-off 28 % high: the order
+    # was the one whose grid point fell nearest the filter's delay
+    gen, outcome = diagnosed("sensor_lowpass", seed, trace_dir)
+    assert outcome.named == "sensor_lowpass", _describe(gen, outcome)
+    fitted = outcome.fitted("sensor_lowpass") or {}
+    assert fitted.get("order") == order, _describe(gen, outcome)
+    error = main_parameter_error(gen, outcome)
+    assert error is not None and error <= TOLERANCE["sensor_lowpass"], _describe(gen, outcome)
+
+
+@pytest.mark.parametrize("seed", [123, 130])
+def test_friction_bumps_off_the_held_out_blocks_or_narrow_are_unknown(
+    seed: int, trace_dir: Path
+) -> None:
+    # 123: the bumps are crossed outside the held-out blocks; 130: 0.12 mm wide, 5 x the
+    # noise in 0.25 mm bins. Both were `none`
+    gen, outcome = diagnosed("unknown_bumps", seed, trace_dir)
+    assert outcome.named == "unknown", _describe(gen, outcome)
+    assert "locally" in outcome.result["structure"]["description"], _describe(gen, outcome)
