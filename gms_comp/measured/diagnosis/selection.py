@@ -46,9 +46,9 @@ SIGNIFICANCE_CHUNKS = 50
 # shape is searched from the LOCAL_STARTS best of its grid (:func:`_local_shape`).
 LOCAL_SHARE = 0.25
 LOCAL_STARTS = 3
-# Shape keys the local search does not step (integers: a filter's order). The best grid
-# trial of each value is refined when its held-out RMS is within DISCRETE_WITHIN of the
-# grid's best: a grid a factor 1.6 apart in cut-off picked a filter's order by which
+# Shape keys the local search does not step (integers: a filter's order). Where the grid's
+# best lowers the held-out RMS by the margin, the best grid trial of each value within
+# DISCRETE_WITHIN of it is refined: a grid a factor 1.6 apart in cut-off picked a filter's order by which
 # grid point fell nearer its delay (12 of 30 independent traces one order off, the
 # cut-off then 17-56 % off); refined, each order's own cut-off decides (seeds 122, 128:
 # order 3 at 0.731/0.396 N held-out against order 4 at 0.739/0.442).
@@ -166,7 +166,11 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
                 # its shape from all its events: the held-out rows may hold one or none
                 best = _local_shape(scorer, trials, baseline.presliding_m)
             elif best.heldout_rms_N < scorer.heldout_rms_N:
-                refined = [_refine(scorer, t, baseline.presliding_m) for t in _per_value(trials)]
+                # each order refined only where the effect could be kept by its margin
+                # alone (each is a local search: 10 % of a typical trace's time)
+                big = best.heldout_rms_N <= (1.0 - cfg.margin) * scorer.heldout_rms_N
+                starts = _per_value(trials) if big else [best]
+                refined = [_refine(scorer, t, baseline.presliding_m) for t in starts]
                 best = _consistent(scorer, min(refined, key=lambda t: t.heldout_rms_N))
             last.append(best)
         kept = [t for t in last if admissible(cfg, scorer, t, level)]
