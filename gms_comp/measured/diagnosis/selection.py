@@ -48,10 +48,11 @@ LOCAL_SHARE = 0.25
 LOCAL_STARTS = 3
 # Shape keys the local search does not step (integers: a filter's order). Where the grid's
 # best lowers the held-out RMS by the margin, the best grid trial of each value within
-# DISCRETE_WITHIN of it is refined: a grid a factor 1.6 apart in cut-off picked a filter's order by which
-# grid point fell nearer its delay (12 of 30 independent traces one order off, the
-# cut-off then 17-56 % off); refined, each order's own cut-off decides (seeds 122, 128:
-# order 3 at 0.731/0.396 N held-out against order 4 at 0.739/0.442).
+# DISCRETE_WITHIN of it is refined: a grid a factor 1.6 apart in cut-off picked a
+# filter's order by which grid point fell nearer its delay (12 of 30 independent traces
+# one order off, the cut-off then 17-56 % off); refined, each order's own cut-off
+# decides (seeds 122, 128: order 3 at 0.731/0.396 N held-out against order 4 at
+# 0.739/0.442).
 DISCRETE = ("order",)
 DISCRETE_WITHIN = 1.25
 
