@@ -24,8 +24,8 @@ def test_a_bump_on_a_few_samples_is_a_spot_with_its_place_and_size() -> None:
     rng = np.random.default_rng(1)
     x, d = _stroke()
     r = rng.normal(0, NOISE, x.size)
-    bump = (np.abs(x - 3.1e-3) < 0.1e-3) & (d > 0)  # 0.2 mm, forward only
-    r[bump] += 0.8
+    bump = np.abs(x - 3.1e-3) < 0.1e-3  # 0.2 mm; friction: against the motion both ways
+    r[bump] += 0.8 * d[bump]
     assert np.count_nonzero(bump) < 0.02 * x.size  # a small share of the samples
     spot = st._spot(r, x, d, NOISE)
     assert spot is not None
@@ -33,7 +33,22 @@ def test_a_bump_on_a_few_samples_is_a_spot_with_its_place_and_size() -> None:
     assert 0.7 <= spot.rms_N <= 0.9
     centre = float(re.search(r"near x = ([-\d.]+) mm", spot.where).group(1))  # type: ignore[union-attr]
     assert 3.0 < centre < 3.2
-    assert "forward" in spot.where
+    assert "-0.8" in spot.where or "-0.7" in spot.where  # the other way, opposite sign
+
+
+def test_a_local_misfit_of_one_sign_both_ways_is_not_a_friction_spot() -> None:
+    # a force at one place that does not turn with the motion (an inertia misfit where
+    # every start accelerates the same way) is not friction there
+    rng = np.random.default_rng(4)
+    x, d = _stroke()
+    r = rng.normal(0, NOISE, x.size)
+    same = np.abs(x - 3.1e-3) < 0.1e-3
+    r[same] += 0.8
+    assert st._spot(r, x, d, NOISE) is None
+    once = same & (d > 0)  # or one way only
+    r2 = rng.normal(0, NOISE, x.size)
+    r2[once] += 0.8
+    assert st._spot(r2, x, d, NOISE) is None
 
 
 def _part(x: np.ndarray, d: np.ndarray, force: np.ndarray, held: np.ndarray) -> SimpleNamespace:
@@ -48,12 +63,11 @@ def test_a_bump_outside_the_held_out_blocks_is_still_a_spot() -> None:
     r = rng.normal(0, NOISE, x.size)
     held = np.zeros(x.size, dtype=bool)
     held[: x.size // 5] = True  # the first fifth held out: one of four passes, forward
-    bump = (np.abs(x - 6.1e-3) < 0.1e-3) & (d > 0) & ~held  # crossed only where fitted
-    r[bump] += 0.8
+    bump = (np.abs(x - 6.1e-3) < 0.1e-3) & ~held  # crossed only where fitted
+    r[bump] += 0.8 * d[bump]
     part = _part(x, d, r, held)
     spot = st._spot_everywhere([part], [np.zeros(x.size)])  # type: ignore[list-item]
     assert spot is not None and spot.rms_N >= st.SPOT_RATIO * NOISE
-    assert "forward" in spot.where
     held_only = st._spot(r[held], x[held], d[held], NOISE)
     assert held_only is None or held_only.rms_N < st.SPOT_RATIO * NOISE
 

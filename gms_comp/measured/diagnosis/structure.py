@@ -47,6 +47,15 @@ SPOT_MIN_SAMPLES = 30
 SPOT_Z = 8.0
 SPOT_RATIO = 6.0
 SPOT_FRACTION = 0.12
+# A friction spot acts both ways: the same bin travelled the other way must hold a mean
+# of the opposite sign this many standard errors from zero. A misfit at one place of the
+# path is not friction there, and on every sample it can stand out as a spot: an inertia
+# fit off at the stroke's end, where every start accelerates (inertia-107: +2.7 N
+# forward, 14 x the noise, +0.03 N back); pair_position_ripple_inertia-106: -6.8 N
+# forward, -4.5 N back. On the bump traces the way back may be fast (12-13 samples in
+# the bin, the sign turned, z 57-200 on unknown_bumps-101 and -108): a few samples do.
+SPOT_PARTNER_Z = 3.0
+SPOT_PARTNER_SAMPLES = 5
 
 
 @dataclass(frozen=True)
@@ -197,7 +206,10 @@ def _spot_everywhere(
 
 def _spot(r: FloatArray, x: FloatArray, d: FloatArray, noise: float) -> Finding | None:
     """The largest significant mean of the residual over ``SPOT_WIDTH_M`` of travel in
-    one direction (its size is that mean, not an RMS over the trace), or None."""
+    one direction (its size is that mean, not an RMS over the trace), or None. Friction
+    changes sign with the direction, so a spot must show with the opposite sign, at least
+    ``SPOT_PARTNER_Z`` standard errors from zero, where the same bin is travelled the other
+    way (module note)."""
     if noise <= 0.0:
         return None
     keys, inverse, counts = np.unique(
@@ -205,7 +217,12 @@ def _spot(r: FloatArray, x: FloatArray, d: FloatArray, noise: float) -> Finding 
     )
     means = np.bincount(inverse, weights=r) / counts
     z = np.abs(means) * np.sqrt(counts) / noise
-    ok = (counts >= SPOT_MIN_SAMPLES) & (z >= SPOT_Z)
+    # the same bin the other way: key + 1 from backward (even), key - 1 from forward
+    other = keys + np.where(keys % 2 == 0, 1.0, -1.0)
+    at = np.clip(np.searchsorted(keys, other), 0, keys.size - 1)
+    partner = (keys[at] == other) & (np.sign(means[at]) == -np.sign(means))
+    partner &= (counts[at] >= SPOT_PARTNER_SAMPLES) & (z[at] >= SPOT_PARTNER_Z)
+    ok = (counts >= SPOT_MIN_SAMPLES) & (z >= SPOT_Z) & partner
     if not ok.any():
         return None
     top = int(np.argmax(np.where(ok, np.abs(means), 0.0)))
@@ -213,7 +230,7 @@ def _spot(r: FloatArray, x: FloatArray, d: FloatArray, noise: float) -> Finding 
     way = "forward" if keys[top] % 2 else "backward"
     return Finding("spot", float(abs(means[top])), f"the level changes locally ({means[top]:+.3g} "
                    f"N over {1e3 * SPOT_WIDTH_M:.3g} mm near x = {1e3 * centre:.4g} mm moving "
-                   f"{way})")  # fmt: skip
+                   f"{way}, {means[at[top]]:+.3g} N the other way)")  # fmt: skip
 
 
 def _phase_finding(
