@@ -41,7 +41,10 @@ TONE_HALF_WIDTH = 2  # bins either side of the peak
 # generator). The bins are 0.125 mm: bumps 0.1-0.45 mm wide; a 0.12 mm one stood 5.2 x
 # the noise in 0.25 mm bins, 6.6 x in 0.125 mm. On 70 effect-free and catalogue traces
 # (seeds 101-130) the largest such mean was 3.7 x the noise and 4.9 % of the level; on
-# 30 bump traces the smallest 6.6 x and 19 %.
+# 30 bump traces the smallest 6.6 x and 19 %. Over all 450 catalogue, pair and
+# effect-free traces of seeds 101-130, six held a larger one, each at one place of the
+# path: three do not turn with the motion (SPOT_PARTNER_Z); three at one stroke end of
+# seed 119 do, and are `unknown` (two were on the held-out rows too).
 SPOT_WIDTH_M = 0.125e-3
 SPOT_MIN_SAMPLES = 30
 SPOT_Z = 8.0
