@@ -51,10 +51,9 @@ def test_a_local_misfit_of_one_sign_both_ways_is_not_a_friction_spot() -> None:
     assert st._spot(r2, x, d, NOISE) is None
 
 
-def _part(x: np.ndarray, d: np.ndarray, force: np.ndarray, held: np.ndarray) -> SimpleNamespace:
-    """The fields of a fitted part the spot scan reads (the model predicts 0)."""
-    ctx = SimpleNamespace(velocity_m_s=1e-3 * d, position_m=x, direction=d)
-    return SimpleNamespace(part=SimpleNamespace(force_N=force, held=held), ctx=ctx)
+def _part(x: np.ndarray, d: np.ndarray) -> SimpleNamespace:
+    """The fields of a fitted part the spot scan reads (its path)."""
+    return SimpleNamespace(ctx=SimpleNamespace(velocity_m_s=1e-3 * d, position_m=x, direction=d))
 
 
 def test_a_bump_outside_the_held_out_blocks_is_still_a_spot() -> None:
@@ -65,8 +64,7 @@ def test_a_bump_outside_the_held_out_blocks_is_still_a_spot() -> None:
     held[: x.size // 5] = True  # the first fifth held out: one of four passes, forward
     bump = (np.abs(x - 6.1e-3) < 0.1e-3) & ~held  # crossed only where fitted
     r[bump] += 0.8 * d[bump]
-    part = _part(x, d, r, held)
-    spot = st._spot_everywhere([part], [np.zeros(x.size)])  # type: ignore[list-item]
+    spot = st._spot_everywhere([_part(x, d)], [r])  # type: ignore[list-item]
     assert spot is not None and spot.rms_N >= st.SPOT_RATIO * NOISE
     held_only = st._spot(r[held], x[held], d[held], NOISE)
     assert held_only is None or held_only.rms_N < st.SPOT_RATIO * NOISE

@@ -193,10 +193,7 @@ def _per_value(trials: Sequence[Trial]) -> list[Trial]:
         if key not in best or t.heldout_rms_N < best[key].heldout_rms_N:
             best[key] = t
     top = min(t.heldout_rms_N for t in best.values())
-    return sorted(
-        (t for t in best.values() if t.heldout_rms_N <= DISCRETE_WITHIN * top),
-        key=lambda t: t.heldout_rms_N,
-    )
+    return [t for t in best.values() if t.heldout_rms_N <= DISCRETE_WITHIN * top]
 
 
 def _refine(scorer: Scorer, best: Trial, presliding_m: float) -> Trial:

@@ -139,10 +139,11 @@ def residual_structure(
     """Where the held-out residual of ``predictions`` depends on phase, velocity,
     position and direction, time, or holds a tone; ``structured`` when the largest part
     is at least ``ratio`` x the noise and ``fraction`` x ``level_N``."""
+    residuals = [fp.part.force_N - y for fp, y in zip(parts, predictions, strict=True)]
     res, vel, pos, dirn, t, phase = [], [], [], [], [], []
-    for j, (fp, y) in enumerate(zip(parts, predictions, strict=True)):
+    for j, (fp, residual) in enumerate(zip(parts, residuals, strict=True)):
         held = fp.part.held
-        res.append((fp.part.force_N - y)[held])
+        res.append(residual[held])
         vel.append(fp.ctx.velocity_m_s[held])
         pos.append(fp.ctx.position_m[held])
         dirn.append(fp.ctx.direction[held])
@@ -152,10 +153,10 @@ def residual_structure(
             labels[mask & (labels < 0)] = i + 100 * j
         phase.append(labels[held])
     r = np.concatenate(res)
-    noise = rms(np.diff(r)) / np.sqrt(2.0)
+    noise = _noise(r)
     v, x, d = np.concatenate(vel), np.concatenate(pos), np.concatenate(dirn)
     findings = [_phase_finding(r, np.concatenate(phase), parts, presliding_m, noise)]
-    moving = np.abs(v) > 0.01 * float(np.max(np.abs(v)))
+    moving = _moving(v)
     if np.count_nonzero(moving) > 4 * BINS:
         vb = _quantile_bins(v[moving], BINS)
         size, top, mean = _grouped(r[moving], vb, noise)
@@ -186,25 +187,36 @@ def residual_structure(
     findings.sort(key=lambda f: f.rms_N, reverse=True)
     top_rms = findings[0].rms_N
     structured = bool(top_rms >= ratio * noise and top_rms >= fraction * level_N)
-    spot = _spot_everywhere(parts, predictions)
+    spot = _spot_everywhere(parts, residuals)
     if spot is not None and spot.rms_N >= max(SPOT_RATIO * noise, SPOT_FRACTION * level_N):
         findings.insert(0, spot)
         structured = True
     return Structure(noise, tuple(findings), structured)
 
 
+def _noise(residual: FloatArray) -> float:
+    """The residual's white-noise RMS, from its sample-to-sample differences."""
+    return rms(np.diff(residual)) / np.sqrt(2.0)
+
+
+def _moving(velocity_m_s: FloatArray) -> BoolArray:
+    """The samples faster than 1 % of the top speed."""
+    return np.abs(velocity_m_s) > 0.01 * float(np.max(np.abs(velocity_m_s)))
+
+
 def _spot_everywhere(
-    parts: Sequence[FittedPart], predictions: Sequence[FloatArray]
+    parts: Sequence[FittedPart], residuals: Sequence[FloatArray]
 ) -> Finding | None:
-    """:func:`_spot` on every moving sample of every part (fitted and held out)."""
-    r = np.concatenate([fp.part.force_N - y for fp, y in zip(parts, predictions, strict=True)])
+    """:func:`_spot` on every moving sample of every part (fitted and held out), given
+    each part's whole residual."""
+    r = np.concatenate(residuals)
     v = np.concatenate([fp.ctx.velocity_m_s for fp in parts])
     x = np.concatenate([fp.ctx.position_m for fp in parts])
     d = np.concatenate([fp.ctx.direction for fp in parts])
-    moving = np.abs(v) > 0.01 * float(np.max(np.abs(v)))
+    moving = _moving(v)
     if np.count_nonzero(moving) <= 4 * BINS:
         return None
-    return _spot(r[moving], x[moving], d[moving], rms(np.diff(r)) / np.sqrt(2.0))
+    return _spot(r[moving], x[moving], d[moving], _noise(r))
 
 
 def _spot(r: FloatArray, x: FloatArray, d: FloatArray, noise: float) -> Finding | None:
