@@ -320,6 +320,12 @@ def _baseline(
     )
 
 
+def placed_on(prepared: Prepared, fitted: Baseline) -> Baseline:
+    """``fitted``'s basis and coefficients (its GMS force in the path context) on
+    ``prepared``'s force."""
+    return _baseline(prepared, fitted.basis, fitted.theta, fitted.info)
+
+
 def refit_gms_force(
     parts: tuple[FittedPart, ...], theta: FloatArray, basis: Basis
 ) -> tuple[FittedPart, ...]:
