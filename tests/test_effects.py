@@ -60,34 +60,38 @@ def test_path_dwell_is_length_of_last_standstill() -> None:
     ctx = fx.Context.along(t, x, v, 0 * t, 0 * t)
     assert ctx.dwell_s[50] == 0.0  # no standstill yet
     assert ctx.dwell_s[450] == pytest.approx(0.3, abs=1e-9)
+    # a record that begins at rest: how long it stood before is unknown, so no dwell
+    late = fx.Context.along(t[100:] - t[100], x[100:], v[100:], 0 * t[100:], 0 * t[100:])
+    assert late.moving[350] == 1.0 and late.dwell_s[350] == 0.0
     assert ctx.moving[200] == 0.0 and ctx.moving[450] == 1.0
     # counted from the rest position: samples 400-450 each moved 1 um
     assert ctx.distance_since_start_m[450] == pytest.approx(51 * 1e-6, rel=1e-6)
 
 
 def test_slow_break_away_is_dated_by_the_rest_band_not_the_speed() -> None:
-    # 0.3 s at rest read through a 5 nm encoder, then a start whose speed rises by 1 mm/s
-    # per second: it stays below a 0.5 mm/s standstill speed for 0.5 s and 125 um
+    # 0.1 s at 1 mm/s, 0.3 s at rest, read through a 5 nm encoder, then a start whose
+    # speed rises by 1 mm/s per second: it stays below a 0.5 mm/s standstill speed for
+    # 0.5 s and 125 um
     dt, step = 1e-3, 5e-9
     t = np.arange(1000) * dt
     moving = np.clip(t - 0.4, 0.0, None)
-    x_true = 1e-3 * 0.5 * moving**2 + 1e-3
+    x_true = 1e-3 * np.minimum(t, 0.1) + 1e-3 * 0.5 * moving**2
     x = np.round(x_true / step) * step
-    v = 1e-3 * moving
+    v = np.where(t < 0.1, 1e-3, 1e-3 * moving)
     by_speed = fx.Context.along(t, x, v, 0 * t, 1.0 + 0 * t, 5e-4)
     by_band = fx.Context.along(t, x, v, 0 * t, 1.0 + 0 * t, 5e-4, rest_band_m=1.5 * step)
-    first_step = int(np.argmax(np.abs(x - x[0]) > 1.5 * step))
+    rest = 200
+    first_step = rest + int(np.argmax(np.abs(x[rest:] - x[rest]) > 1.5 * step))
     late = 500
     # by speed: the axis counts as resting until 0.9 s, 125 um after it left
     assert by_speed.resting[late] == 1.0
     # by the band: resting ends on the first steps beyond it, the dwell is the whole stop
     # and the distance counts from where it stood
     assert by_band.resting[first_step - 1] == 1.0 and by_band.resting[first_step] == 0.0
-    assert by_band.dwell_s[late] == pytest.approx(0.4 + (first_step - 400) * dt, abs=1.5 * dt)
-    assert by_band.distance_since_start_m[late] == pytest.approx(x[late] - x[0], abs=step)
+    assert by_band.dwell_s[late] == pytest.approx(0.3 + (first_step - 400) * dt, abs=1.5 * dt)
+    assert by_band.distance_since_start_m[late] == pytest.approx(x[late] - x[rest], abs=step)
     # the break-away window of a dwell gain follows the band's start: an element of 2 um
-    # raised by 1 + 0.3 ln(1 + 0.4 / 0.05) = 1.66 stretches on from 2 to 3.3 um (the
-    # 63rd to the 81st ms after the start)
+    # raised by 1 + 0.3 ln(1 + 0.3 / 0.05) = 1.58 stretches on from 2 to 3.2 um
     effect = fx.DwellTime(0.3, 0.05, 0.3)
     element = GmsParams(np.array([1.0 / 2e-6]), np.array([1.0]))
     speed_ctx = dataclasses.replace(by_speed, gms=element)

@@ -71,8 +71,10 @@ def _direction_step(state: FloatArray, x: float, v: float, deadband: float) -> N
 @numba.njit(cache=True)
 def _start(state: FloatArray, x: float, began: float) -> None:
     """The motion resumes (it began at ``began``): the dwell ends and the distance counts
-    from the rest position."""
-    state[_DWELL] = began - state[_STILL_SINCE]
+    from the rest position. A rest from the first sample began before the path did: its
+    length is unknown, and its dwell is 0 (no standstill seen)."""
+    known = state[_STILL_SINCE] > state[_T0]
+    state[_DWELL] = began - state[_STILL_SINCE] if known else 0.0
     state[_CUM_AT_RESUME] = state[_CUM] - abs(x - state[_ANCHOR])
     state[_REST] = 0.0
 
