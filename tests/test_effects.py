@@ -63,6 +63,12 @@ def test_path_dwell_is_length_of_last_standstill() -> None:
     # a record that begins at rest: how long it stood before is unknown, so no dwell
     late = fx.Context.along(t[100:] - t[100], x[100:], v[100:], 0 * t[100:], 0 * t[100:])
     assert late.moving[350] == 1.0 and late.dwell_s[350] == 0.0
+    # ... but the motion resumed from a rest: a start, and a break-away after it
+    np.testing.assert_array_equal(late.starts(), [300])
+    assert late.resting[0] == 1.0 and late.after_rest()[350]
+    np.testing.assert_array_equal(ctx.starts(), [400])
+    assert not ctx.after_rest()[50] and ctx.after_rest()[450]
+    assert late.starts(hold_s=0.31).size == 0  # its rest was 0.3 s as seen
     assert ctx.moving[200] == 0.0 and ctx.moving[450] == 1.0
     # counted from the rest position: samples 400-450 each moved 1 um
     assert ctx.distance_since_start_m[450] == pytest.approx(51 * 1e-6, rel=1e-6)

@@ -24,7 +24,7 @@ def phase_masks(ctx: fx.Context, presliding_m: float) -> dict[str, BoolArray]:
     breakaway = (
         (ctx.resting == 0)
         & ~after_reversal
-        & (ctx.dwell_s > 0)
+        & ctx.after_rest()
         & (ctx.distance_since_start_m < presliding_m)
     )
     accel = np.abs(ctx.acceleration_m_s2)

@@ -209,8 +209,7 @@ def held_third(
     (the path's rests, as the effects see them); then the one nearest a third of them
     (1, 0, 2 on ties)."""
     ctx = fx.Context.of(kin, np.zeros(third.size), still_m_s, deadband_m, rest_band_m)
-    ends = np.flatnonzero((ctx.resting[:-1] > 0.0) & (ctx.resting[1:] == 0.0)) + 1
-    starts = ends[ctx.dwell_s[ends] >= REST_HOLD_S]
+    starts = ctx.starts(REST_HOLD_S)
     counts = np.bincount(third[starts], minlength=3)
     share = starts.size / 3.0
     if counts[1] >= HELD_STARTS_SHARE * share:

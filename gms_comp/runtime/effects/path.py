@@ -14,7 +14,7 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
-from gms_comp.arrays import FloatArray
+from gms_comp.arrays import BoolArray, FloatArray, IntArray
 from gms_comp.gms import GmsParams
 from gms_comp.kinematics import Kinematics
 
@@ -226,6 +226,20 @@ class Context:
         return cls.with_path(
             t, x, v, np.asarray(acceleration_m_s2, float), np.asarray(gms_force_N, float), path, dt
         )
+
+    def after_rest(self) -> BoolArray:
+        """The samples after the first rest: every motion there resumed from one (a rest
+        from the record's first sample counts, though its dwell, unknown, is 0)."""
+        return np.maximum.accumulate(self.resting > 0.0)
+
+    def starts(self, hold_s: float = REST_HOLD_S) -> IntArray:
+        """The samples where the motion resumes after a rest of at least ``hold_s`` (a rest
+        from the record's first sample by the length seen)."""
+        ends = np.flatnonzero((self.resting[:-1] > 0.0) & (self.resting[1:] == 0.0)) + 1
+        held = self.dwell_s[ends] >= hold_s
+        if ends.size and self.resting[0] > 0.0:
+            held[0] = self.time_s[ends[0]] - self.time_s[0] >= hold_s
+        return ends[held]
 
     @classmethod
     def of(
