@@ -25,7 +25,7 @@ TOLERANCE = {
     "drift": 0.25,  # kappa trades against tau when tau is a good part of the trace
     "stribeck": 0.30,  # ratio - 1 trades against v_s and the baseline's onset velocity
     "reversal_transient": 0.30,  # A trades against its length and the presliding curve
-    "dwell_time": 0.35,  # gamma is seen only at the break-aways after standstills
+    "dwell_time": 0.35,  # the gain after the median standstill, seen at break-aways only
 }
 assert set(TOLERANCE) == set(CATALOGUE)
 

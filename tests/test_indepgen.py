@@ -14,8 +14,10 @@ from indepgen import (
     PAIRS,
     Truth,
     baseline,
+    dwell_gain,
     friction,
     make_trace,
+    median_standstill,
     parameter_error,
     play_operator,
     velocity_level,
@@ -282,3 +284,19 @@ def test_csv_round_trip(tmp_path: Path) -> None:
     np.testing.assert_allclose(table[:, 1], gen.position_m, rtol=1e-11, atol=1e-15)
     np.testing.assert_allclose(table[:, 2], gen.force_N, rtol=1e-8)
     assert not list(tmp_path.glob(".*partial"))
+
+
+def test_a_dwell_gain_is_judged_at_the_median_standstill() -> None:
+    # gamma and tau that give the same gain after the trace's median standstill are one
+    # answer (the trace cannot tell them apart); a gain 10 % off there is 10 % off
+    gen = make_trace("dwell_time", 1, SHORT)
+    p = gen.effects[0][1]
+    median = median_standstill(baseline(1, SHORT)[0])
+    assert p["median_standstill_s"] == median > 0.0
+    size = dwell_gain(p, median)
+    tau = 3.0 * p["tau_s"]
+    same = {"gamma": size / np.log1p(median / tau), "tau_s": tau}
+    assert parameter_error("dwell_time", p, same) == pytest.approx(0.0, abs=1e-12)
+    assert abs(same["gamma"] / p["gamma"] - 1.0) > 0.5  # gamma alone: far off
+    more = {"gamma": 1.1 * p["gamma"], "tau_s": p["tau_s"]}
+    assert parameter_error("dwell_time", p, more) == pytest.approx(0.1)
