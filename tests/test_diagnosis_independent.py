@@ -14,7 +14,16 @@ from pathlib import Path
 
 import pytest
 from indepdiag import TOLERANCE, Outcome, main_parameter_error, pair_in_order, timed_diagnose
-from indepgen import CATALOGUE, MAIN_PARAMETER, PAIRS, UNKNOWN, Generated, make_trace, write_csv
+from indepgen import (
+    CATALOGUE,
+    MAIN_PARAMETER,
+    PAIRS,
+    UNKNOWN,
+    Generated,
+    dwell_gain,
+    make_trace,
+    write_csv,
+)
 
 pytestmark = pytest.mark.slow  # every case runs the full diagnosis (tens of seconds each)
 
@@ -135,6 +144,24 @@ def test_dwell_windows_are_computed_at_the_fitted_gain(seed: int, trace_dir: Pat
         pytest.skip("dwell_time not named (see test_catalogue_effect_is_named_first)")
     ratio = params["reach"] / params["gamma"]
     assert 1 / 1.1 <= ratio <= 1.1, _describe(gen, outcome)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_a_dwell_gain_is_reported_after_the_trace_s_median_standstill(
+    seed: int, trace_dir: Path
+) -> None:
+    # what a trace determines of a dwell gain: the break-away gain after its typical
+    # standstill (gamma alone trades with tau); the median is the truth's, within 5 %
+    gen, outcome = diagnosed("dwell_time", seed, trace_dir)
+    if outcome.named != "dwell_time":
+        pytest.skip("dwell_time not named (see test_catalogue_effect_is_named_first)")
+    entry = next(e for e in outcome.result["effects"] if e["effect"] == "dwell_time")
+    figures, fitted = entry["in_context"], entry["parameters"]
+    truth = dict(gen.effects)["dwell_time"]
+    assert figures["median_dwell_s"] == pytest.approx(truth["median_standstill_s"], rel=0.05)
+    assert figures["gain_after_median_dwell"] == pytest.approx(
+        dwell_gain(fitted, figures["median_dwell_s"]), rel=1e-9
+    )
 
 
 def test_a_small_dwell_gain_is_judged_by_its_significance(trace_dir: Path) -> None:

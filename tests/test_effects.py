@@ -320,3 +320,15 @@ def test_dwell_gain_raises_one_element_by_gamma_log_of_the_dwell(back: bool) -> 
     assert area == pytest.approx((g - 1.0) ** 2 * w * d * np.mean(spread) / 2, rel=0.03)
     gone = travel > hi + 6e-8
     np.testing.assert_allclose(extra[gone], 0.0, atol=1e-9)  # slipped: the plain element
+
+
+def test_a_dwell_gain_along_a_trace_is_its_gain_after_the_median_standstill() -> None:
+    t, x, v = _slide_hold_slide(back=False)
+    ctx = fx.Context.along(t, x, v, 0 * t, 0 * t)
+    effect = fx.DwellTime(0.2, 0.1, 0.2)
+    figures = effect.in_context(ctx)
+    assert figures["median_dwell_s"] == pytest.approx(0.5, abs=1e-9)
+    assert figures["gain_after_median_dwell"] == pytest.approx(0.2 * math.log(6.0), rel=1e-12)
+    moving = fx.Context.along(t[:1000], x[:1000], v[:1000], 0 * t[:1000], 0 * t[:1000])
+    assert effect.in_context(moving) == {}  # no standstill ended: nothing to say
+    assert fx.Offset(1.0).in_context(ctx) == {}

@@ -202,6 +202,9 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
         params = ", ".join(parameter_text(k, v) for k, v in e["parameters"].items())
         head = "cause" if i == 0 and effect != "unknown" else "  then"
         lines.append(f"{head}: {e['effect']} ({params})")
+        if e.get("in_context"):
+            figures = ", ".join(parameter_text(k, v) for k, v in e["in_context"].items())
+            lines.append(f"        along this trace: {figures}")
     lines.append(
         f"gain: {doc['gain']:.1%} (held-out RMS {doc['baseline_rms_N']:.4g} N -> "
         f"{doc['extended_rms_N']:.4g} N)"

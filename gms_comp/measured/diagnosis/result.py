@@ -38,6 +38,8 @@ class Diagnosis:
     seconds: float
     # how the extensions saw the path (rest, reversals): travels with them into the table
     extension_context: dict[str, float] = field(default_factory=dict)
+    # each ranked effect's figures along the trace (:meth:`~.effects.Effect.in_context`)
+    in_context: tuple[dict[str, float], ...] = ()
 
     @property
     def noise_rms_N(self) -> float:
@@ -60,7 +62,8 @@ class Diagnosis:
                     "parameters": c.effect.parameters(),
                     "heldout_rms_N": c.heldout_rms_N,
                 }
-                for c in self.ranked
+                | ({"in_context": figures} if figures else {})
+                for c, figures in zip(self.ranked, self._figures(), strict=True)
             ],
             "parameters": self.ranked[0].effect.parameters() if named else {},
             "baseline_rms_N": self.baseline_rms_N,
@@ -73,6 +76,9 @@ class Diagnosis:
             "candidates_tried": self.tried,
             "seconds": self.seconds,
         }
+
+    def _figures(self) -> tuple[dict[str, float], ...]:
+        return self.in_context or tuple({} for _ in self.ranked)
 
 
 def verdict(ranked: tuple[Ranked, ...], structure: Structure) -> str:

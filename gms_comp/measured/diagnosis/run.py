@@ -135,4 +135,5 @@ def _diagnose(
         seconds=time.perf_counter() - start,
         # the table's keys are Prepared's fields of the same names
         extension_context={key: getattr(prepared, key) for key in EXTENSION_CONTEXT_KEYS},
+        in_context=tuple(c.effect.in_context(main.ctx) for c in extended.ranked),
     )

@@ -93,6 +93,11 @@ class Effect:
         """All parameters by their spec names, SI units."""
         return {k: float(v) for k, v in asdict(self).items()}
 
+    def in_context(self, ctx: Context) -> dict[str, float]:
+        """What the parameters come to along ``ctx``, where that is what a trace
+        determines better than the parameters themselves (none by default)."""
+        return {}
+
     def apply(self, ctx: Context, force_N: FloatArray) -> FloatArray:
         """The measured force this effect makes of ``force_N`` (batch)."""
         return force_N + self.basis(ctx, self.shape()) @ self.coefficients()
