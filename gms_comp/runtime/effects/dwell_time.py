@@ -51,24 +51,6 @@ SPREAD_ELEMENTS = 5
 _PREV_X, _PREV_REST, _FIRST = range(3)
 
 
-@numba.njit(cache=True, inline="always")
-def _element(
-    f: float, d: float, g: float, k: float, w: float, level: float, dx: float
-) -> tuple[float, float, float]:
-    """One Maxwell-slip element (the GMS kernel's rule, rate-independent); while held
-    since a start (g >= 1) it slips only beyond g times its limit at the current speed,
-    and is the kernel's element again (g = 0) once it has."""
-    if d != 0.0 and d * dx >= 0.0:
-        return d * level * w, d, g
-    stretch = (f if d == 0.0 else d * w) + k * dx
-    threshold = w * level * g if g >= 1.0 else w
-    if stretch > threshold:
-        return level * w, 1.0, 0.0
-    if stretch < -threshold:
-        return -level * w, -1.0, 0.0
-    return stretch, 0.0, g
-
-
 @numba.njit(cache=True)
 def _raised_run(
     k: FloatArray, w: FloatArray, scalars: FloatArray, reach: float, tau: float,
@@ -81,9 +63,21 @@ def _raised_run(
     alone (the climb from the stick to the sliding level belongs to the baseline).
     ``state`` (6 n + 3: the held elements' forces, slip directions and holds, the
     raised ones' alike, then the scalars) is advanced in place, so a
-    stream of one-sample calls equals one batch."""
+    stream of one-sample calls equals one batch.
+
+    Each element is a Maxwell-slip element (the GMS kernel's rule, rate-independent)
+    that, while held since a start (hold g >= 1), slips only beyond g times its limit at
+    the current speed, and is the kernel's element again (g = 0) once it has. The held
+    and the raised elements are one vector of 2 n, updated without branches (so that
+    the compiler vectorises it), then summed in order."""
     n = k.size
     tail = 6 * n
+    # fresh local copies, the held elements then the raised ones: they alias nothing
+    kk = np.concatenate((k, k))
+    ww = np.concatenate((w, w))
+    f = np.concatenate((state[0:n], state[3 * n : 4 * n]))
+    d = np.concatenate((state[n : 2 * n], state[4 * n : 5 * n]))
+    g = np.concatenate((state[2 * n : 3 * n], state[5 * n : 6 * n]))
     for j in range(x.size):
         if state[tail + _FIRST] == 0.0:
             state[tail + _PREV_X] = x[j]
@@ -95,19 +89,27 @@ def _raised_run(
             # the motion resumes: every element sticks where it rested, held
             gain = 1.0 + reach * math.log1p(dwell[j] / tau)
             for i in range(n):
-                state[n + i], state[2 * n + i] = 0.0, 1.0
-                state[4 * n + i], state[5 * n + i] = 0.0, gain
+                d[i], g[i] = 0.0, 1.0
+                d[n + i], g[n + i] = 0.0, gain
         state[tail + _PREV_REST] = resting[j]
+        for i in range(2 * n):
+            fi, di, gi, wi = f[i], d[i], g[i], ww[i]
+            sliding = di != 0.0 and di * dx >= 0.0
+            stretch = (fi if di == 0.0 else di * wi) + kk[i] * dx
+            threshold = wi * level * gi if gi >= 1.0 else wi
+            up = stretch > threshold
+            down = stretch < -threshold
+            f[i] = di * level * wi if sliding else (
+                level * wi if up else (-level * wi if down else stretch)
+            )  # fmt: skip
+            d[i] = di if sliding else (1.0 if up else (-1.0 if down else 0.0))
+            g[i] = gi if sliding else (0.0 if up or down else gi)
         extra = 0.0
         for i in range(n):
-            held = _element(state[i], state[n + i], state[2 * n + i], k[i], w[i], level, dx)
-            state[i], state[n + i], state[2 * n + i] = held
-            raised = _element(
-                state[3 * n + i], state[4 * n + i], state[5 * n + i], k[i], w[i], level, dx
-            )
-            state[3 * n + i], state[4 * n + i], state[5 * n + i] = raised
-            extra += raised[0] - held[0]
+            extra += f[n + i] - f[i]
         out[j] = extra
+    state[0:n], state[n : 2 * n], state[2 * n : 3 * n] = f[:n], d[:n], g[:n]
+    state[3 * n : 4 * n], state[4 * n : 5 * n], state[5 * n : 6 * n] = f[n:], d[n:], g[n:]
 
 
 class RaisedLimits:
