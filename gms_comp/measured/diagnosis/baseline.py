@@ -83,6 +83,11 @@ class FittedPart:
     base: Columns  # phi (+ acceleration for a drive force)
     ctx: fx.Context  # path quantities, the GMS force the baseline's
 
+    @functools.cached_property
+    def base_rows(self) -> FloatArray:
+        """The base columns as contiguous rows (what a filter runs along), made once."""
+        return np.ascontiguousarray(self.base.values.T)
+
 
 @dataclass(frozen=True)
 class Baseline:

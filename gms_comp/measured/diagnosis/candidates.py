@@ -90,9 +90,11 @@ def design(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> list[PartDe
     out = []
     for fp in parts:
         cols = fp.base
-        for f in filters:
-            cols = Columns(f.filter_effect().filter_columns(cols.values, fp.ctx.sample_time_s),
-                           cols.lower)  # fmt: skip
+        if filters:
+            rows = fp.base_rows
+            for f in filters:
+                rows = f.filter_effect().filter_rows(rows, fp.ctx.sample_time_s)
+            cols = Columns(rows.T, cols.lower)
         for opt in chosen:
             if not opt.is_filter:
                 cols = cols + opt.columns(fp, filters)

@@ -140,15 +140,21 @@ class FilterEffect(Effect):
 
     def filter_columns(self, x: FloatArray, sample_time_s: float) -> FloatArray:
         """Filter along axis 0, starting at rest at the first sample's value."""
-        b, a = self.filter(sample_time_s)
-        zi = signal.lfilter_zi(b, a)
         if np.ndim(x) == 1:
+            b, a = self.filter(sample_time_s)
+            zi = signal.lfilter_zi(b, a)
             return np.asarray(signal.lfilter(b, a, x, zi=zi * x[0])[0])
         # each column as a contiguous row: the same numbers 1.5-3 x faster than along
         # axis 0 (a filter trial refilters every column of a tall design)
-        rows = np.ascontiguousarray(np.asarray(x).T)
+        return self.filter_rows(np.ascontiguousarray(np.asarray(x).T), sample_time_s).T
+
+    def filter_rows(self, rows: FloatArray, sample_time_s: float) -> FloatArray:
+        """:meth:`filter_columns` of ``rows.T``, each column given as a contiguous row
+        (a design's columns transposed once for every filter tried on them)."""
+        b, a = self.filter(sample_time_s)
+        zi = signal.lfilter_zi(b, a)
         y, _ = signal.lfilter(b, a, rows, axis=-1, zi=np.multiply.outer(rows[:, 0], zi))
-        return np.asarray(y).T
+        return np.asarray(y)
 
 
 def top_speed(ctx: Context) -> float:
