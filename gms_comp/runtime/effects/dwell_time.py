@@ -47,7 +47,7 @@ REACH_RANGE = (5e-3, 1.5)
 # 0.48-0.91, none: 0.62-0.95).
 SPREAD = 0.1
 SPREAD_ELEMENTS = 5
-# Layout of the state after the 5 element vectors: last position, last rest flag, first.
+# Layout of the state after the 6 element vectors: last position, last rest flag, first.
 _PREV_X, _PREV_REST, _FIRST = range(3)
 
 
