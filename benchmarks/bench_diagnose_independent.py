@@ -154,7 +154,8 @@ def _gamma_alone(rows: list[dict[str, Any]]) -> str:
     return _count(
         named,
         lambda r: (
-            abs(r["parameters"]["gamma"] / _truth_of(r)["gamma"] - 1.0) <= TOLERANCE["dwell_time"]
+            abs(r["parameters"]["gamma"] / dict(r["truth"])["dwell_time"]["gamma"] - 1.0)
+            <= TOLERANCE["dwell_time"]
         ),
     )
 

@@ -38,33 +38,21 @@ _diagnosed: dict[tuple[str, int], tuple[Generated, Outcome]] = {}
 # so the parameter too); KNOWN_PARAMETER_MISSES: named right, main parameter off.
 KNOWN_MISSES: dict[tuple[str, int], str] = {}
 KNOWN_PARAMETER_MISSES: dict[tuple[str, int], str] = {}
-# Cases whose answer depends on the last bits of the linear algebra (the BLAS kernels a
-# CPU selects): not strict, they pass on one machine and fail on another. Issue 15 open.
-# (dwell_time-101 was one while gamma alone was judged: 0.188 at tau 0.358 s with
-# OpenBLAS's Haswell or Zen kernels, 0.085 at 0.092 s with its SkylakeX ones, for a true
-# 0.170 at 0.281 s; the gains after the median standstill of 0.34 s, 0.125 and 0.131
-# for a true 0.134, are within 7 % with both.)
-FRAGILE: dict[tuple[str, int], str] = {}
 
 
 def grid(
-    cases: list[str] | tuple[str, ...],
-    misses: dict[tuple[str, int], str] = KNOWN_MISSES,
-    fragile: dict[tuple[str, int], str] | None = None,
+    cases: list[str] | tuple[str, ...], misses: dict[tuple[str, int], str] = KNOWN_MISSES
 ) -> list[object]:
-    """``(case, seed)`` parameters, the known ``misses`` marked strict xfail, the
-    ``fragile`` ones xfail that may pass."""
-    fragile = fragile or {}
-
-    def marks(key: tuple[str, int]) -> list[pytest.MarkDecorator]:
-        if key in misses:
-            return [pytest.mark.xfail(strict=True, reason=misses[key])]
-        if key in fragile:
-            return [pytest.mark.xfail(strict=False, reason=fragile[key])]
-        return []
-
+    """``(case, seed)`` parameters, the known ``misses`` marked strict xfail."""
     return [
-        pytest.param(case, seed, id=f"{case}-{seed}", marks=marks((case, seed)))
+        pytest.param(
+            case,
+            seed,
+            id=f"{case}-{seed}",
+            marks=[pytest.mark.xfail(strict=True, reason=misses[case, seed])]
+            if (case, seed) in misses
+            else [],
+        )
         for case in cases
         for seed in SEEDS
     ]
@@ -100,9 +88,7 @@ def test_catalogue_effect_is_named_first(effect: str, seed: int, trace_dir: Path
     assert outcome.named == effect, _describe(gen, outcome)
 
 
-@pytest.mark.parametrize(
-    ("effect", "seed"), grid(CATALOGUE, KNOWN_MISSES | KNOWN_PARAMETER_MISSES, FRAGILE)
-)
+@pytest.mark.parametrize(("effect", "seed"), grid(CATALOGUE, KNOWN_MISSES | KNOWN_PARAMETER_MISSES))
 def test_catalogue_effect_main_parameter_within_tolerance(
     effect: str, seed: int, trace_dir: Path
 ) -> None:

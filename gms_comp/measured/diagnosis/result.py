@@ -36,10 +36,10 @@ class Diagnosis:
     tried: list[dict[str, Any]]  # the best trial of every effect in the last round
     series: dict[str, FloatArray]  # for the report's plots
     seconds: float
+    # each ranked effect's figures along the trace (:meth:`~.effects.Effect.in_context`)
+    in_context: tuple[dict[str, float], ...]
     # how the extensions saw the path (rest, reversals): travels with them into the table
     extension_context: dict[str, float] = field(default_factory=dict)
-    # each ranked effect's figures along the trace (:meth:`~.effects.Effect.in_context`)
-    in_context: tuple[dict[str, float], ...] = ()
 
     @property
     def noise_rms_N(self) -> float:
@@ -63,7 +63,7 @@ class Diagnosis:
                     "heldout_rms_N": c.heldout_rms_N,
                 }
                 | ({"in_context": figures} if figures else {})
-                for c, figures in zip(self.ranked, self._figures(), strict=True)
+                for c, figures in zip(self.ranked, self.in_context, strict=True)
             ],
             "parameters": self.ranked[0].effect.parameters() if named else {},
             "baseline_rms_N": self.baseline_rms_N,
@@ -76,9 +76,6 @@ class Diagnosis:
             "candidates_tried": self.tried,
             "seconds": self.seconds,
         }
-
-    def _figures(self) -> tuple[dict[str, float], ...]:
-        return self.in_context or tuple({} for _ in self.ranked)
 
 
 def verdict(ranked: tuple[Ranked, ...], structure: Structure) -> str:
