@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gms_comp.errors import GmsCompError, TraceError
+from gms_comp.measured import trace_csv
 from gms_comp.measured.traces import Trace, load_trace, parse_mapping, write_trace
 
 EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"
@@ -184,9 +185,7 @@ def test_mat_variable_is_refused_by_declared_size_before_loading(
 
 
 def test_csv_rows_are_capped_while_reading(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    import gms_comp.measured.traces as traces
-
-    monkeypatch.setattr(traces, "MAX_TRACE_SAMPLES", 150)
+    monkeypatch.setattr(trace_csv, "MAX_TRACE_SAMPLES", 150)
     p = _csv(tmp_path, "time_s,position_m,force_N\n" + _good_rows(200) + "\n")
     with pytest.raises(TraceError, match=r"row 152: more than 150 samples"):
         load_trace(p)
@@ -298,3 +297,29 @@ def test_csv_round_trip_any_force(tmp_path_factory: pytest.TempPathFactory, f: l
     p = tmp_path_factory.mktemp("rt") / "h.csv"
     write_trace(p, trace)
     np.testing.assert_allclose(load_trace(p).force_N, trace.force_N, rtol=1e-11, atol=1e-300)
+
+
+@pytest.mark.parametrize(
+    "rows",
+    [
+        "0,0,1\n0.001,1e-6,2\n0.002,2e-6,3\n",  # plain
+        "0, 0 ,1\r\n0.001,1e-6, 2\r\n0.002,2e-6,3",  # spaces, CRLF, no final newline
+        '0,0,1\n0.001,"1e-6",2\n0.002,2e-6,3\n',  # a quoted cell
+        "0,0,1\n\n0.001,1e-6,2\n  \n0.002,2e-6,3\n",  # blank rows
+    ],
+)
+def test_csv_read_in_one_pass_as_cell_by_cell(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, rows: str
+) -> None:
+    """The one-pass numpy reading of plain files gives the values and row numbers of the
+    cell-by-cell reader, and files it cannot read plainly go to that reader."""
+    p = _csv(tmp_path, "time_s,position_m,force_N\n" + rows)
+    assert (trace_csv._plain_csv(p) is None) == ('"' in rows or "\n\n" in rows)
+    fast = trace_csv.read_csv(p)
+    monkeypatch.setattr(trace_csv, "_plain_csv", lambda path: None)
+    cells = trace_csv.read_csv(p)
+    assert fast[1] == cells[1]
+    assert fast[0].keys() == cells[0].keys()
+    for name, values in cells[0].items():
+        np.testing.assert_array_equal(fast[0][name], values)
+    assert cells[1] == ([2, 3, 4] if "\n\n" not in rows else [2, 4, 6])

@@ -18,7 +18,6 @@ number.
 
 from __future__ import annotations
 
-import csv
 import math
 import re
 from collections.abc import Callable, Mapping, Sequence
@@ -31,7 +30,8 @@ import scipy.io
 
 from gms_comp.atomic import atomic_path
 from gms_comp.errors import TraceError
-from gms_comp.validation import MAX_TRACE_BYTES, MAX_TRACE_SAMPLES
+from gms_comp.measured.trace_csv import read_csv
+from gms_comp.validation import MAX_TRACE_SAMPLES
 
 ForceKind = Literal["friction", "drive"]
 
@@ -58,8 +58,6 @@ MAX_PLAUSIBLE_SPEED_M_S = 20.0
 MIN_MOTION_M = 1e-9
 
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-#: Columns of a CSV trace (the canonical ones need 7; extra columns are read and ignored).
-MAX_TRACE_COLUMNS = 64
 
 
 class TraceUnitWarning(UserWarning):
@@ -153,7 +151,7 @@ def load_trace(
         raise TraceError(f"{p}: file not found")
     suffix = p.suffix.lower()
     if suffix == ".csv":
-        columns, lines = _read_csv(p)
+        columns, lines = read_csv(p)
         mapping = mapping or _identity(columns)
         trace = _build(p, _evaluate(p, columns, mapping), None)
 
@@ -193,62 +191,6 @@ def write_trace(path: str | Path, trace: Trace) -> None:
 
 
 # --- reading -----------------------------------------------------------------------------
-
-
-def _read_csv(path: Path) -> tuple[dict[str, np.ndarray], list[int]]:
-    """Columns of a CSV file as float arrays (the header row names them) and the file's
-    line number of each sample, for error messages."""
-    size = path.stat().st_size
-    if size > MAX_TRACE_BYTES:
-        raise TraceError(
-            str(path), "", f"{size} bytes, more than the {MAX_TRACE_BYTES} a CSV trace may have"
-        )
-    try:
-        with path.open(newline="", encoding="utf-8") as fh:
-            reader = csv.reader(fh)
-            header = next(reader, None)
-            if header is None:
-                raise TraceError(f"{path}: empty file (expected a header row)")
-            header = [h.strip() for h in header]
-            if len(header) > MAX_TRACE_COLUMNS:
-                raise TraceError(
-                    str(path), "row 1", f"{len(header)} columns, more than {MAX_TRACE_COLUMNS}"
-                )
-            if len(set(header)) != len(header):
-                raise TraceError(f"{path}: row 1: duplicate column names in the header")
-            values: list[list[float]] = []
-            lines: list[int] = []
-            for line, row in enumerate(reader, start=2):
-                if not row or all(not c.strip() for c in row):
-                    continue
-                lines.append(line)
-                if len(lines) > MAX_TRACE_SAMPLES:
-                    raise TraceError(
-                        str(path),
-                        f"row {line}",
-                        f"more than {MAX_TRACE_SAMPLES} samples; cut the record into parts",
-                    )
-                if len(row) != len(header):
-                    raise TraceError(
-                        f"{path}: row {line}: {len(row)} cells, the header has {len(header)}"
-                    )
-                values.append([_number(path, line, header[i], c) for i, c in enumerate(row)])
-    except UnicodeDecodeError as err:
-        raise TraceError(f"{path}: not a text file ({err.reason})") from err
-    except csv.Error as err:
-        raise TraceError(f"{path}: not valid CSV ({err})") from err
-    table = np.array(values, dtype=float).reshape(len(values), len(header))
-    return {name: table[:, i] for i, name in enumerate(header)}, lines
-
-
-def _number(path: Path, line: int, column: str, cell: str) -> float:
-    try:
-        value = float(cell)
-    except ValueError:
-        raise TraceError(f"{path}: row {line}, column {column}: not a number {cell!r}") from None
-    if not math.isfinite(value):
-        raise TraceError(f"{path}: row {line}, column {column}: {cell.strip()} is not finite")
-    return value
 
 
 def _declared_mat_shapes(path: Path) -> dict[str, tuple[int, ...]]:
