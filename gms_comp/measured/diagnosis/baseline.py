@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -72,6 +72,9 @@ SUPPORT_SHARE = 0.01
 # the truth's dwell force, the moved ones 0.49-0.95; the held-out RMS fell 0.2-8 %.
 KNOT_STEPS = (0.2, 0.1, 0.05)
 KNOT_ROUNDS = 6
+# The effect bases a part keeps for the rounds of the selection (about 180 columns of a
+# 175 000-sample trace).
+BASES_KEPT_BYTES = 256 << 20
 
 
 @dataclass(frozen=True)
@@ -87,6 +90,25 @@ class FittedPart:
     def base_rows(self) -> FloatArray:
         """The base columns as contiguous rows (what a filter runs along), made once."""
         return np.ascontiguousarray(self.base.values.T)
+
+    @functools.cached_property
+    def _bases(self) -> dict[tuple[object, ...], FloatArray]:
+        return {}
+
+    def effect_basis(self, effect: type[fx.Effect], shape: Mapping[str, float]) -> FloatArray:
+        """``effect``'s basis along this part at ``shape``, read-only and kept for the
+        whole diagnosis, up to ``BASES_KEPT_BYTES`` (the oldest dropped first): the
+        selection scores an effect's grid again in every round and a chosen effect's
+        columns again in every filter trial (a dwell column: 15 ms)."""
+        key = (effect.name, *sorted(shape.items()))
+        kept = self._bases
+        if key not in kept:
+            values = effect.basis(self.ctx, shape)
+            values.flags.writeable = False
+            while kept and sum(v.nbytes for v in kept.values()) + values.nbytes > BASES_KEPT_BYTES:
+                del kept[next(iter(kept))]
+            kept[key] = values
+        return kept[key]
 
 
 @dataclass(frozen=True)

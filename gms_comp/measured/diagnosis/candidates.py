@@ -67,7 +67,7 @@ class Option:
 
     def columns(self, fp: FittedPart, filters: Sequence[Option] = ()) -> Columns:
         """The additive option's columns on ``fp``, through the chosen ``filters``."""
-        values = self.effect.basis(fp.ctx, self.shape)
+        values = fp.effect_basis(self.effect, self.shape)
         for f in filters:
             values = f.filter_effect().filter_columns(values, fp.ctx.sample_time_s)
         return Columns(values, np.full(values.shape[1], self.effect.COEFFICIENT_LOWER))
