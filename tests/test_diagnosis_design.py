@@ -115,3 +115,21 @@ def test_an_event_left_out_is_judged_by_a_fit_that_never_saw_it() -> None:
     others[own] = False
     if np.any(p.train[events[2]]):  # its rows trained the other folds' fits
         assert np.max(np.abs(new2[others] - new[others])) > 1e-3
+
+
+def test_a_design_is_the_same_from_contiguous_or_transposed_columns() -> None:
+    """Rows are gathered by ``np.take`` from contiguous columns and by index from a
+    filtered design's transposed rows: the fit, its training RMS and held-out residual
+    are the same numbers either way, and the RMS is the residual's."""
+    parts, _, _ = _problem(2)
+    p = parts[0]
+    transposed = np.ascontiguousarray(p.columns.values.T).T
+    assert not transposed.flags.c_contiguous
+    other = PartDesign(Columns(transposed, p.columns.lower), p.force_N, p.train, p.held)
+    a, b = GramDesign(parts), GramDesign([other])
+    theta = a.fit()
+    assert np.array_equal(theta, b.fit())
+    assert a.train_rms(theta) == b.train_rms(theta)
+    assert np.array_equal(a.held_residual(theta), b.held_residual(theta))
+    residual = p.force_N[p.train] - p.columns.values[p.train] @ theta
+    assert abs(a.train_rms(theta) - np.sqrt(np.mean(residual**2))) < 1e-12

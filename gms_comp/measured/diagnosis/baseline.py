@@ -39,7 +39,6 @@ from gms_comp.measured.diagnosis.design import (
     PartDesign,
     rms,
     solve_gram_sse,
-    train_rms,
 )
 from gms_comp.measured.diagnosis.prepare import Part, Prepared
 from gms_comp.measured.diagnosis.slip_level import (
@@ -180,7 +179,7 @@ def _fit(
     designs = _part_designs(prepared, basis, nuisance)
     gram = GramDesign(designs)
     theta = gram.fit()
-    return designs, theta, train_rms(designs, theta)
+    return designs, theta, gram.train_rms(theta)
 
 
 def fit_free(

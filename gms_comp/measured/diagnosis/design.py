@@ -99,7 +99,9 @@ class GramDesign:
         self.lower = self.parts[0].columns.lower
         self._train_rows = [np.flatnonzero(p.train) for p in self.parts]
         self._held_rows = [np.flatnonzero(p.held) for p in self.parts]
-        self._train_a = [p.columns.values[p.train] for p in self.parts]
+        self._train_a = [
+            _gather(p.columns.values, r) for p, r in zip(self.parts, self._train_rows, strict=True)
+        ]
         self._train_y = [p.force_N[p.train] for p in self.parts]
         self.gram = sum(
             (a.T @ a for a in self._train_a), np.zeros((self.lower.size, self.lower.size))
@@ -110,12 +112,22 @@ class GramDesign:
         )
         self._yy = float(sum(float(y @ y) for y in self._train_y))
         self._n_train = sum(y.size for y in self._train_y)
-        self._held_a = [p.columns.values[p.held] for p in self.parts]
+        self._held_a = [
+            _gather(p.columns.values, r) for p, r in zip(self.parts, self._held_rows, strict=True)
+        ]
         self._held_y = np.concatenate([p.force_N[p.held] for p in self.parts])
 
     def fit(self) -> FloatArray:
         """Coefficients of the design fitted on the training rows."""
         return solve_gram(self.gram, self.rhs, self.lower)
+
+    def train_rms(self, theta: FloatArray) -> float:
+        """Training RMS of the design with coefficients ``theta``."""
+        return rms(
+            np.concatenate(
+                [y - a @ theta for a, y in zip(self._train_a, self._train_y, strict=True)]
+            )
+        )
 
     def held_residual(self, theta: FloatArray) -> FloatArray:
         """Held-out residual of the design with coefficients ``theta``."""
@@ -214,13 +226,13 @@ class GramDesign:
                 np.concatenate([self.lower, extra[0].lower]))  # fmt: skip
 
 
+def _gather(values: FloatArray, rows: IntArray) -> FloatArray:
+    """``values[rows]``: by ``np.take`` where the rows are contiguous (1.8 ms against 2.8 ms
+    by a mask for 131 000 x 18), by index otherwise (a filtered design's transposed rows,
+    where ``np.take`` is the slower)."""
+    return np.take(values, rows, axis=0) if values.flags.c_contiguous else values[rows]
+
+
 def every_row(parts: Sequence[PartDesign]) -> list[PartDesign]:
     """``parts`` fitted on all their rows, training and held out (held out: as before)."""
     return [PartDesign(p.columns, p.force_N, p.train | p.held, p.held) for p in parts]
-
-
-def train_rms(parts: Sequence[PartDesign], theta: FloatArray) -> float:
-    """Training RMS of the parts' design with coefficients ``theta``."""
-    return rms(
-        np.concatenate([p.force_N[p.train] - p.columns.values[p.train] @ theta for p in parts])
-    )

@@ -31,7 +31,7 @@ from gms_comp.measured.diagnosis.baseline import (
 from gms_comp.measured.diagnosis.basis import FreeBasis
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, design, effect_of, widths
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
-from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms, train_rms
+from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
 from gms_comp.measured.diagnosis.selection import Selection, admissible, agreed, local_search
 from gms_comp.runtime import effects as fx
 
@@ -185,8 +185,8 @@ def _rank(
 
 
 def _train_rms(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> float:
-    designs = design(parts, chosen)
-    return train_rms(designs, GramDesign(designs).fit())
+    gram = GramDesign(design(parts, chosen))
+    return gram.train_rms(gram.fit())
 
 
 def _refine_shapes(
