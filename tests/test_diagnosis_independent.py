@@ -184,6 +184,19 @@ def test_a_stribeck_speed_is_refitted_with_the_joint_gms_force(trace_dir: Path) 
     assert error is not None and error <= TOLERANCE["stribeck"], _describe(gen, outcome)
 
 
+@pytest.mark.parametrize("seed", [105, 126])
+def test_a_stribeck_fall_and_the_slip_level_are_searched_together(
+    seed: int, trace_dir: Path
+) -> None:
+    # v_s 2.1 and 2.2 mm/s, C_v 1.28 and 1.18: the blind baseline carried the fall with
+    # its slip level (C_v 1.0 and 1.05), and steps on the level and then on v_s stalled
+    # with ratio - 1 0.58 and 0.64 off
+    gen, outcome = diagnosed("stribeck", seed, trace_dir)
+    assert outcome.named == "stribeck", _describe(gen, outcome)
+    error = main_parameter_error(gen, outcome)
+    assert error is not None and error <= TOLERANCE["stribeck"], _describe(gen, outcome)
+
+
 @pytest.mark.parametrize(("seed", "order"), [(122, 3), (128, 3)])
 def test_a_sensor_filter_s_order_is_decided_by_its_own_cutoff(
     seed: int, order: int, trace_dir: Path

@@ -6,7 +6,8 @@ force; it is updated to the jointly fitted GMS and the fit repeated (``JOINT_REF
 times), so that they scale the force the extended model will run with. The shapes of
 ``REFIT_SHAPES`` are searched again each time by training RMS: the selection chose them
 by held-out RMS with the baseline's GMS force, where a dwell's gain and time constant
-trade off (tau came out 15-30 % high on simulated traces).
+trade off (tau came out 15-30 % high on simulated traces). A kept Stribeck fall's v_s is
+then searched together with the slip level it trades against (``JOINT_LEVEL_EVALS``).
 """
 
 from __future__ import annotations
@@ -16,11 +17,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import optimize
 
 from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams, simulate
 from gms_comp.measured.diagnosis.baseline import (
     Baseline,
+    Basis,
     FittedPart,
     fit_baseline,
     placed_on,
@@ -33,6 +36,7 @@ from gms_comp.measured.diagnosis.candidates import Option, Scorer, design, effec
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
 from gms_comp.measured.diagnosis.selection import Selection, admissible, agreed, local_search
+from gms_comp.measured.diagnosis.slip_level import SLIP_LEVEL_RANGE, transition_range
 from gms_comp.runtime import effects as fx
 
 JOINT_REFITS = 3
@@ -44,6 +48,15 @@ REFIT_SHAPES = (fx.DwellTime, fx.Drift, fx.Stribeck)
 # model left 1.27 N in the slow first quarter, and a tone there read as ``unknown``).
 PLACED_AGAIN = (fx.PositionRipple, fx.ReversalTransient)
 WHOLE_ROWS = (fx.DwellTime,)
+# A kept Stribeck fall and the slip level's rise (C_v over v_t) trade against each other:
+# the blind baseline, fitted before the fall is known, lowers C_v to carry it (1.0 for a
+# truth's 1.28), and coordinate steps on the level, then on v_s, crawl along the ridge
+# between them and stall (independent stribeck-105: C_v 1.06 -> 1.15 and v_s 4.8 -> 2.7
+# mm/s in six rounds, ratio 1.23; truth 1.28, 2.06 mm/s, 1.37). They are searched
+# together: a bounded Nelder-Mead in (C_v, ln v_t, ln v_s) from these first steps, at
+# most JOINT_LEVEL_EVALS trials (60 trials: C_v 1.27, v_s 2.1 mm/s, ratio 1.35; 3.6 s).
+JOINT_LEVEL_STEPS = (0.05, float(np.log(2.0)), float(np.log(1.3)))
+JOINT_LEVEL_EVALS = 60
 
 
 @dataclass(frozen=True)
@@ -85,10 +98,13 @@ def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
             basis, parts = slip, rebased(baseline, slip)
         chosen, history = _prune(parts, chosen, history, cfg, baseline.sliding_force_N)
     theta = GramDesign(design(parts, chosen)).fit()
-    for _ in range(JOINT_REFITS if chosen else 0):
-        parts = refit_gms_force(parts, theta, basis)
-        chosen = _refine_shapes(parts, chosen, baseline.presliding_m)
+    parts, chosen, theta = _joint_refits(parts, basis, chosen, theta, baseline.presliding_m)
+    joint = _level_with_stribeck(baseline, basis, chosen)
+    if joint is not None:
+        basis, chosen = joint
+        parts = rebased(baseline, basis)
         theta = GramDesign(design(parts, chosen)).fit()
+        parts, chosen, theta = _joint_refits(parts, basis, chosen, theta, baseline.presliding_m)
     if len(chosen) > 1:
         order, history = _rank(parts, chosen, theta)
         if order != chosen:
@@ -113,6 +129,68 @@ def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
         ]
     )
     return Extended(baseline, ranked, gms, tuple(extensions), predictions, rms(held), held)
+
+
+def _joint_refits(
+    parts: tuple[FittedPart, ...], basis: Basis, chosen: list[Option], theta: FloatArray,
+    presliding_m: float,
+) -> tuple[tuple[FittedPart, ...], list[Option], FloatArray]:  # fmt: skip
+    """``JOINT_REFITS`` times: the GMS force updated to the joint fit ``theta``, the
+    shapes of ``REFIT_SHAPES`` searched again, everything fitted again."""
+    for _ in range(JOINT_REFITS if chosen else 0):
+        parts = refit_gms_force(parts, theta, basis)
+        chosen = _refine_shapes(parts, chosen, presliding_m)
+        theta = GramDesign(design(parts, chosen)).fit()
+    return parts, chosen, theta
+
+
+def _level_with_stribeck(
+    baseline: Baseline, basis: Basis, chosen: list[Option]
+) -> tuple[FreeBasis, list[Option]] | None:
+    """A kept Stribeck fall's v_s searched together with the free basis's slip level
+    (C_v and v_t; see ``JOINT_LEVEL_EVALS``), each trial costed by the training RMS once
+    the GMS force is updated ``JOINT_REFITS`` times; None when no Stribeck fall is kept,
+    the basis is a table's, or the search found nothing better."""
+    at = next((k for k, o in enumerate(chosen) if o.effect is fx.Stribeck), None)
+    if at is None or not isinstance(basis, FreeBasis):
+        return None
+    vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in baseline.prepared.parts)
+    vs_range = fx.Stribeck.shape_bounds(baseline.parts[0].ctx, baseline.presliding_m)
+    bounds = [SLIP_LEVEL_RANGE, *(
+        (float(np.log(lo)), float(np.log(hi)))
+        for lo, hi in (transition_range(vmax, np.inf), vs_range["v_s_m_per_s"])
+    )]  # fmt: skip
+
+    def unpack(u: FloatArray) -> tuple[FreeBasis, list[Option]]:
+        level = FreeBasis(
+            basis.breakaway_m, float(u[0]), float(np.exp(u[1])), basis.transition_exponent
+        )
+        stribeck = chosen[at].with_value("v_s_m_per_s", float(np.exp(u[2])))
+        return level, [*chosen[:at], stribeck, *chosen[at + 1 :]]
+
+    def cost(u: FloatArray) -> float:
+        level, options = unpack(u)
+        parts = rebased(baseline, level)
+        theta = GramDesign(design(parts, options)).fit()
+        for _ in range(JOINT_REFITS):
+            parts = refit_gms_force(parts, theta, level)
+            theta = GramDesign(design(parts, options)).fit()
+        return GramDesign(design(parts, options)).train_rms(theta)
+
+    u0 = np.array([
+        basis.slip_level, np.log(basis.transition_velocity_m_s),
+        np.log(chosen[at].shape["v_s_m_per_s"]),
+    ])  # fmt: skip
+    lo, hi = np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
+    u0 = np.clip(u0, lo, hi)
+    simplex = np.clip(u0 + np.vstack([np.zeros(3), np.diag(JOINT_LEVEL_STEPS)]), lo, hi)
+    start = cost(u0)
+    found = optimize.minimize(
+        cost, u0, method="Nelder-Mead", bounds=bounds,
+        options={"maxfev": JOINT_LEVEL_EVALS, "initial_simplex": simplex, "xatol": 0.01,
+                 "fatol": 1e-4 * start},
+    )  # fmt: skip
+    return unpack(found.x) if found.fun < start else None
 
 
 def _placed_again(baseline: Baseline, chosen: list[Option], cfg: DiagnosisConfig) -> Baseline:
