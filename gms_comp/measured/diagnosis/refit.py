@@ -171,11 +171,13 @@ def _level_with_stribeck(
     def cost(u: FloatArray) -> float:
         level, options = unpack(u)
         parts = rebased(baseline, level)
-        theta = GramDesign(design(parts, options)).fit()
+        gram = GramDesign(design(parts, options))
+        theta = gram.fit()
         for _ in range(JOINT_REFITS):
             parts = refit_gms_force(parts, theta, level)
-            theta = GramDesign(design(parts, options)).fit()
-        return GramDesign(design(parts, options)).train_rms(theta)
+            gram = GramDesign(design(parts, options))
+            theta = gram.fit()
+        return gram.train_rms(theta)
 
     u0 = np.array([
         basis.slip_level, np.log(basis.transition_velocity_m_s),
@@ -183,7 +185,10 @@ def _level_with_stribeck(
     ])  # fmt: skip
     lo, hi = np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
     u0 = np.clip(u0, lo, hi)
-    simplex = np.clip(u0 + np.vstack([np.zeros(3), np.diag(JOINT_LEVEL_STEPS)]), lo, hi)
+    # each first step away from the nearer bound (clipped at it, the simplex would be flat)
+    steps = np.asarray(JOINT_LEVEL_STEPS)
+    steps = np.where(u0 + steps <= hi, steps, -steps)
+    simplex = np.clip(u0 + np.vstack([np.zeros(3), np.diag(steps)]), lo, hi)
     start = cost(u0)
     found = optimize.minimize(
         cost, u0, method="Nelder-Mead", bounds=bounds,
