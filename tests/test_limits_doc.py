@@ -39,6 +39,7 @@ CAP_MODULES = (
     "gms_comp.physics.contact",
     "gms_comp.tables.table",
     "gms_comp.measured.traces",
+    "gms_comp.measured.trace_csv",
     "gms_comp.app.sweep",
 )
 _CAP = re.compile(r"((?:^#:.*\n)+)^((?:MAX|MIN)_[A-Z0-9_]+)\s*=", re.MULTILINE)
