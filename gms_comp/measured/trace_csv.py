@@ -69,7 +69,7 @@ def read_csv(path: Path) -> tuple[dict[str, np.ndarray], list[int]]:
 
 
 def _plain_csv(path: Path) -> tuple[dict[str, np.ndarray], list[int]] | None:
-    """:func:`_read_csv`'s result for a file of plain numbers (no quotes, no blank rows,
+    """:func:`read_csv`'s result for a file of plain numbers (no quotes, no blank rows,
     every cell a finite number), parsed by numpy in one pass (a trace of 131 000 rows:
     0.08 s against 0.38 s cell by cell); None for any other file, which the cell-by-cell
     reader then reads or says where it is wrong."""
