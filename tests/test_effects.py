@@ -42,13 +42,33 @@ def test_path_distance_since_reversal_and_direction() -> None:
     assert ctx.distance_since_reversal_m[1500] == pytest.approx(0.5e-3, rel=1e-6)
 
 
+@pytest.mark.parametrize("residue", [-1e-71, 1e-71, 0.0])
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_the_first_stroke_after_a_rest_is_no_reversal(residue: float, sign: float) -> None:
+    # at rest for 0.3 s, then 1 mm either way: a smoothed speed's rounding residue at the
+    # first sample (of either sign) must not set a direction the first stroke then reverses
+    n_rest, n_move = 300, 1000
+    t = np.arange(n_rest + n_move) * 1e-3
+    x = sign * np.concatenate([np.zeros(n_rest), np.linspace(0, 1e-3, n_move + 1)[1:]])
+    v = np.gradient(x, t)
+    v[0] = residue
+    ctx = fx.Context.along(t, x, v, 0 * t, 0 * t, reversal_deadband_m=1e-9)
+    assert np.all(np.isinf(ctx.distance_since_reversal_m))
+    assert np.all(ctx.direction[:n_rest] == 0.0)
+    assert np.all(ctx.direction[n_rest:] == sign)
+    # hence no reversal transient anywhere on it
+    assert not np.any(fx.ReversalTransient(3.0, 5e-5).apply(ctx, np.zeros(t.size)))
+
+
 def test_steps_and_ringing_within_the_deadband_are_no_reversal() -> None:
     # a slow ramp read through a 0.1 um encoder, with ringing of a fifth of a step
     t = np.arange(4000) * 1e-3
     x = np.round(1e-6 * t / 1e-7) * 1e-7 + 2e-8 * np.sin(2 * np.pi * 40 * t)
     v = np.gradient(x, t)
     ctx = fx.Context.along(t, x, v, 0 * t, 0 * t, 0.0, reversal_deadband_m=6e-8)
-    assert np.all(ctx.direction == 1.0)
+    first = int(np.argmax(np.abs(x - x[0]) > 6e-8))  # the first step sets the direction
+    assert 0 < first < 200
+    assert np.all(ctx.direction[:first] == 0.0) and np.all(ctx.direction[first:] == 1.0)
     assert ctx.distance_since_reversal_m[-1] > 3.9e-6
 
 

@@ -48,14 +48,20 @@ STEP_SHARE = 1.0 / 3.0
 
 
 @numba.njit(cache=True)
-def _direction_step(state: FloatArray, x: float, v: float, deadband: float) -> None:
+def _direction_step(state: FloatArray, x: float, deadband: float) -> None:
     """Direction of motion from the position: a reversal is a retreat of more than
     ``deadband`` from the furthest point reached, and counts from that turning point
-    (so encoder steps and filter ringing at a standstill make no reversals)."""
+    (so encoder steps and filter ringing at a standstill make no reversals). The first
+    move of more than ``deadband`` from the first sample sets the direction; it is not a
+    reversal. (Set by the first nonzero speed, the direction came from a smoothed speed's
+    rounding residue at the first sample, -1e-71 m/s, of either sign: on half of an
+    independent generator's traces the first stroke then counted as a reversal and
+    carried a full reversal transient, and reversal_transient-124's amplitude came out
+    0.79 N for 3.87 N.)"""
     d = state[_DIR]
     if d == 0.0:
-        if v != 0.0:  # the first motion sets the direction (it is not a reversal)
-            state[_DIR] = 1.0 if v > 0.0 else -1.0
+        if abs(x - state[_EXTREME]) > deadband:
+            state[_DIR] = 1.0 if x > state[_EXTREME] else -1.0
             state[_EXTREME] = x
             state[_CUM_AT_EXTREME] = state[_CUM]
     elif (x - state[_EXTREME]) * d >= 0.0:
@@ -135,7 +141,9 @@ def path_step(
     first = state[_FIRST] == 1.0
     dx = 0.0 if first else x - state[_PREV_X]
     state[_CUM] += abs(dx)
-    _direction_step(state, x, v, deadband)
+    if first:
+        state[_EXTREME] = x  # where the first move is measured from
+    _direction_step(state, x, deadband)
     # hysteresis: a noisy speed near the threshold must not make many short standstills
     still = abs(v) < (RESUME_FACTOR * still_speed if state[_STILL] == 1.0 else still_speed)
     if first:
