@@ -54,8 +54,8 @@ def _direction_step(state: FloatArray, x: float, deadband: float) -> None:
     (so encoder steps and filter ringing at a standstill make no reversals). The first
     move of more than ``deadband`` from the first sample sets the direction; it is not a
     reversal. (Set by the first nonzero speed, the direction came from a smoothed speed's
-    rounding residue at the first sample, -1e-71 m/s, of either sign: on half of an
-    independent generator's traces the first stroke then counted as a reversal and
+    rounding residue at the first sample, about 1e-71 m/s, of either sign: on 13 of 30
+    seeds of an independent generator the first stroke then counted as a reversal and
     carried a full reversal transient, and reversal_transient-124's amplitude came out
     0.79 N for 3.87 N.)"""
     d = state[_DIR]
