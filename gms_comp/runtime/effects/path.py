@@ -142,14 +142,13 @@ def path_step(
     dx = 0.0 if first else x - state[_PREV_X]
     state[_CUM] += abs(dx)
     if first:
+        state[_T0] = t
+        state[_CAND_X] = x
+        state[_CAND_T] = t
         state[_EXTREME] = x  # where the first move is measured from
     _direction_step(state, x, deadband)
     # hysteresis: a noisy speed near the threshold must not make many short standstills
     still = abs(v) < (RESUME_FACTOR * still_speed if state[_STILL] == 1.0 else still_speed)
-    if first:
-        state[_T0] = t
-        state[_CAND_X] = x
-        state[_CAND_T] = t
     _rest_step(state, t, x, still, rest_band)
     state[_STILL] = 1.0 if still else 0.0
     state[_PREV_X] = x
