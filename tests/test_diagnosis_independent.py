@@ -10,6 +10,7 @@ session and shared by the assertions on it.
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import pytest
@@ -188,6 +189,27 @@ def test_a_stribeck_fall_is_sized_with_the_level_it_trades_against(
     assert outcome.named == "stribeck", _describe(gen, outcome)
     error = main_parameter_error(gen, outcome)
     assert error is not None and error <= TOLERANCE["stribeck"], _describe(gen, outcome)
+
+
+@pytest.mark.parametrize(("seed", "confounded"), [(119, True), (101, False)])
+def test_a_trace_that_cannot_tell_speed_from_direction_says_so(
+    seed: int, confounded: bool, trace_dir: Path
+) -> None:
+    # seed 119's step-and-stop holds two moves: forward at 6.9 mm/s, back at 1.2 mm/s.
+    # Its hidden Stribeck fall is named direction_asymmetry (both fit the held-out rows
+    # within 3 %); the answer must say that this trace could not tell them apart. Seed
+    # 101 moves at several speeds both ways: no such caveat.
+    gen, outcome = diagnosed("stribeck", seed, trace_dir)
+    kinds = [c["kind"] for c in outcome.result["caveats"]]
+    assert kinds == (["speed_direction"] if confounded else []), _describe(gen, outcome)
+    if confounded:
+        caveat = outcome.result["caveats"][0]
+        assert {"stribeck", "direction_asymmetry", outcome.named} <= set(caveat["effects"])
+        bands = re.findall(r"(forward|back) at ([\d.]+)-([\d.]+) mm/s", caveat["text"])
+        speeds = {"forward": 6.9, "back": 1.2}  # the generator's moves (mm/s)
+        assert len(bands) == 2, caveat["text"]
+        for way, lo, hi in bands:
+            assert float(lo) <= speeds[way] <= float(hi), caveat["text"]
 
 
 @pytest.mark.parametrize(("seed", "order"), [(122, 3), (128, 3)])

@@ -205,6 +205,8 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
         if e.get("in_context"):
             figures = ", ".join(parameter_text(k, v) for k, v in e["in_context"].items())
             lines.append(f"        along this trace: {figures}")
+    for caveat in doc.get("caveats", ()):
+        lines.append(f"caveat: {caveat['text']}")
     lines.append(
         f"gain: {doc['gain']:.1%} (held-out RMS {doc['baseline_rms_N']:.4g} N -> "
         f"{doc['extended_rms_N']:.4g} N)"

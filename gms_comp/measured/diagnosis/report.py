@@ -90,6 +90,7 @@ def _html(d: Diagnosis, images: list[str]) -> str:
         for k, v in d.phases.items()
     )
     structure = e(d.structure.description()) or "noise-like"
+    caveats = "".join(f"<p><b>Caveat:</b> {e(c.text)}.</p>" for c in d.caveats)
     figures = "".join(f'<p><img src="{e(name)}" alt="{e(name)}"></p>' for name in images)
     return f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>gms-comp diagnosis</title>
@@ -103,6 +104,7 @@ Residual left by the extended model: {structure}.</p>
 <h2>Effects kept (ranked)</h2>
 <table><tr><th>#</th><th>effect</th><th>parameters</th><th>held-out RMS [N]</th></tr>
 {rows or '<tr><td colspan="4">none</td></tr>'}</table>
+{caveats}
 <h2>Baseline residual by motion phase</h2>
 <table><tr><th>phase</th><th>RMS [N]</th><th>mean [N]</th><th>samples</th></tr>{phases}</table>
 <h2>Plots</h2>{figures}

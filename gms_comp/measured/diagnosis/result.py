@@ -7,6 +7,7 @@ from typing import Any
 
 from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams
+from gms_comp.measured.diagnosis.coverage import Caveat
 from gms_comp.measured.diagnosis.refit import Ranked
 from gms_comp.measured.diagnosis.structure import Structure
 from gms_comp.runtime import effects as fx
@@ -40,6 +41,8 @@ class Diagnosis:
     in_context: tuple[dict[str, float], ...]
     # how the extensions saw the path (rest, reversals): travels with them into the table
     extension_context: dict[str, float] = field(default_factory=dict)
+    # what the trace's motion cannot tell apart among the ranked effects (:mod:`.coverage`)
+    caveats: tuple[Caveat, ...] = ()
 
     @property
     def noise_rms_N(self) -> float:
@@ -73,6 +76,7 @@ class Diagnosis:
             "baseline": self.baseline,
             "phases": self.phases,
             "structure": self.structure.to_json(),
+            "caveats": [c.to_json() for c in self.caveats],
             "candidates_tried": self.tried,
             "seconds": self.seconds,
         }

@@ -12,7 +12,8 @@
    extra design columns over its shape grid, kept by held-out error with a margin.
 4. :mod:`.refit`: the kept effects refitted jointly, the extended model simulated.
 5. :mod:`.structure`: ``unknown`` when the extended model's residual still has
-   structure; :mod:`.result`: the record and its JSON.
+   structure; :mod:`.coverage`: what the trace's motion cannot tell apart among the
+   effects kept; :mod:`.result`: the record and its JSON.
 
 Held-out samples are every third of ``n_blocks`` contiguous blocks of the trace (so
 both parts hold every kind of motion), or a whole second trace when one is given.
@@ -28,6 +29,7 @@ from threadpoolctl import threadpool_limits
 from gms_comp.gms import GmsParams
 from gms_comp.measured.diagnosis.baseline import fit_baseline
 from gms_comp.measured.diagnosis.config import DiagnosisConfig, load_diagnosis_config
+from gms_comp.measured.diagnosis.coverage import caveats
 from gms_comp.measured.diagnosis.phases import phase_masks, residual_by_phase
 from gms_comp.measured.diagnosis.prepare import encoder_force_ratio, prepare
 from gms_comp.measured.diagnosis.refit import refit
@@ -119,6 +121,7 @@ def _diagnose(
             validation_baseline_N=baseline.predictions[1],
             validation_extended_N=extended.predictions[1],
         )
+    named = [c.effect.name for c in extended.ranked]
     return Diagnosis(
         effect=verdict(extended.ranked, structure),
         ranked=extended.ranked,
@@ -136,4 +139,5 @@ def _diagnose(
         # the table's keys are Prepared's fields of the same names
         extension_context={key: getattr(prepared, key) for key in EXTENSION_CONTEXT_KEYS},
         in_context=tuple(c.effect.in_context(main.ctx) for c in extended.ranked),
+        caveats=caveats(main.part.kin.velocity_m_s, prepared.standstill_speed_m_s, named),
     )
