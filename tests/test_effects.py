@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from gms_comp.gms import GmsParams, simulate
 from gms_comp.runtime import effects as fx
-from gms_comp.runtime.effects import dwell_time
+from gms_comp.runtime.effects import dwell_time, position_ripple
 
 
 def _ctx(
@@ -179,6 +179,23 @@ def test_ripple_grid_finds_a_ripple_of_few_periods_over_the_stroke(periods: floa
     assert nearest == pytest.approx(wavelength, rel=0.01)
     low, high = fx.PositionRipple.shape_bounds(ctx, 1e-6)["wavelength_m"]
     assert low < wavelength <= high
+
+
+@given(
+    st.integers(1, 5000),
+    st.floats(1e-4, 0.5),
+    st.integers(0, 2**32 - 1),
+)
+@settings(max_examples=40, deadline=None)
+def test_ripple_scan_s_blocked_sum_is_the_plain_sum(n: int, top: float, seed: int) -> None:
+    """The scan's projection, summed in blocks, equals the plain sum of n terms (any n,
+    frequencies up to ``top`` cycles per bin), to rounding."""
+    rng = np.random.default_rng(seed)
+    sums = rng.normal(size=n)
+    cycles = np.geomspace(top / 300, top, 37)
+    plain = np.abs(np.exp(-2j * np.pi * np.outer(cycles, np.arange(n))) @ sums)
+    blocked = position_ripple.projection(sums, cycles)
+    assert np.allclose(blocked, plain, rtol=1e-9, atol=1e-9 * float(np.sum(np.abs(sums))))
 
 
 def test_ripple_form_matches_spec() -> None:

@@ -95,9 +95,8 @@ def design(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> list[PartDe
             for f in filters:
                 rows = f.filter_effect().filter_rows(rows, fp.ctx.sample_time_s)
             cols = Columns(rows.T, cols.lower)
-        for opt in chosen:
-            if not opt.is_filter:
-                cols = cols + opt.columns(fp, filters)
+        additive = [opt.columns(fp, filters) for opt in chosen if not opt.is_filter]
+        cols = Columns.join([cols, *additive])
         out.append(PartDesign(cols, fp.part.force_N, fp.part.train, fp.part.held))
     return out
 

@@ -36,9 +36,14 @@ class Columns:
     values: FloatArray  # (n, k)
     lower: FloatArray  # (k,)
 
-    def __add__(self, other: Columns) -> Columns:
+    @staticmethod
+    def join(blocks: Sequence[Columns]) -> Columns:
+        """The blocks side by side, stacked once (a design of k blocks joined pairwise
+        copied the tall matrix k - 1 times: 4 of 36 s on one trace)."""
+        if len(blocks) == 1:
+            return blocks[0]
         return Columns(
-            np.column_stack([self.values, other.values]), np.concatenate([self.lower, other.lower])
+            np.column_stack([b.values for b in blocks]), np.concatenate([b.lower for b in blocks])
         )
 
 
