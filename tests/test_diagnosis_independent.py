@@ -26,6 +26,8 @@ from indepgen import (
     write_csv,
 )
 
+from gms_comp.app.commands.diagnose import summary
+
 pytestmark = pytest.mark.slow  # every case runs the full diagnosis (tens of seconds each)
 
 FIRST_SEED = 101
@@ -210,6 +212,8 @@ def test_a_trace_that_cannot_tell_speed_from_direction_says_so(
         assert len(bands) == 2, caveat["text"]
         for way, lo, hi in bands:
             assert float(lo) <= speeds[way] <= float(hi), caveat["text"]
+    text = summary({**outcome.result, "trace": f"stribeck-{seed}"}, gen.time_s.size, "friction")
+    assert ("caveat: speed and direction go together" in text) == confounded, text
 
 
 @pytest.mark.parametrize(("seed", "order"), [(122, 3), (128, 3)])
