@@ -10,7 +10,13 @@ import pytest
 
 from gms_comp.app.cli import main
 from gms_comp.app.commands.demo_trace import generate, scaled_table_trace
-from gms_comp.app.fleet import FleetJob, diagnose_fleet, recurring_effects, report_names
+from gms_comp.app.fleet import (
+    FleetJob,
+    diagnose_fleet,
+    format_table,
+    recurring_effects,
+    report_names,
+)
 from gms_comp.app.scaleout import dask_client
 from gms_comp.measured.traces import write_trace
 from gms_comp.physics.config import load_ball_config
@@ -61,6 +67,23 @@ def test_recurring_effects_name_what_the_fleet_shares(serial: dict[str, Any]) ->
     assert offset["share"] == pytest.approx(2 / 4)
     values = sorted(r["parameters"]["offset_N"] for r in serial["traces"][:2])
     assert values[0] <= offset["median_parameters"]["offset_N"] <= values[1]
+
+
+def test_a_trace_s_caveat_is_printed_under_its_row(serial: dict[str, Any]) -> None:
+    # the fleet's own traces move both ways at the same speeds: no caveat in any row
+    assert all(r["caveats"] == [] for r in serial["traces"] if r["status"] == "ok")
+    said = "speed and direction go together on this trace"
+    caveat = {"kind": "speed_direction", "effects": ["stribeck"], "text": said}
+    row = {
+        "trace": "slow_back.csv",
+        "status": "ok",
+        "effect": "direction_asymmetry",
+        "parameters": {"c_diff_Ns_per_m": 40.0},
+        "gain": 0.5,
+        "caveats": [caveat],
+    }
+    lines = format_table({"traces": [row], "recurring_effects": []}).splitlines()
+    assert lines[1].startswith("slow_back.csv") and lines[2].split() == ["caveat:", *said.split()]
 
 
 def test_recurring_effects_ignore_singletons_and_none() -> None:

@@ -76,6 +76,7 @@ def diagnose_one(job: FleetJob) -> dict[str, Any]:
         "extended_rms_N": doc["extended_rms_N"],
         "gain": doc["gain"],
         "baseline_source": doc["baseline"].get("source", "free_nnls"),
+        "caveats": doc["caveats"],
     }
     if job.report_dir is not None:
         from gms_comp.measured.diagnosis.report import write_report
@@ -139,6 +140,7 @@ def format_table(summary: Mapping[str, Any]) -> str:
             continue
         params = ", ".join(f"{k}={v:.4g}" for k, v in row["parameters"].items())
         lines.append(f"{name:40s} {row['effect']:20s} {row['gain']:7.1%}  {params}")
+        lines.extend(f"{'':40s} caveat: {c['text']}" for c in row.get("caveats", ()))
     for rec in summary["recurring_effects"]:
         lines.append(
             f"recurring: {rec['effect']} in {rec['count']} traces ({rec['share']:.0%}), "
