@@ -277,8 +277,8 @@ def agreed(
     ``option`` and ``coefficients`` read a fit's option and its own coefficients.
     Returns the first fit that agrees within ``CONSISTENCY_CONVERGED``, else the one
     that agrees best."""
-    current = first
-    best, best_factor = first, agreement(option(first), coefficients(first))[1]
+    current = best = first
+    best_factor = np.inf
     below: dict[str, float] = {}  # per key: the last value whose agreed value was larger
     above: dict[str, float] = {}  # ... and smaller
     for _ in range(CONSISTENCY_STEPS):
