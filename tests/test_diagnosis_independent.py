@@ -193,6 +193,25 @@ def test_a_stribeck_fall_is_sized_with_the_level_it_trades_against(
     assert error is not None and error <= TOLERANCE["stribeck"], _describe(gen, outcome)
 
 
+def test_a_drift_is_sized_with_the_level_it_trades_against(trace_dir: Path) -> None:
+    # 109 (kappa 0.278 over 9.96 s, C_v 1.23): the blind baseline's level was placed on the
+    # growing force (C_v 1.37), and the refits stopped at 0.199 over 5.5 s (0.28 off);
+    # tau searched with the level, 0.276 over 9.92 s
+    gen, outcome = diagnosed("drift", 109, trace_dir)
+    assert outcome.named == "drift", _describe(gen, outcome)
+    error = main_parameter_error(gen, outcome)
+    assert error is not None and error <= 0.1, _describe(gen, outcome)
+
+
+def test_a_mass_is_fitted_where_the_acceleration_is_large(trace_dir: Path) -> None:
+    # 124: both 7.4 m/s^2 ramps fell in held-out blocks (the training rows reached 0.55),
+    # and the mass fitted on sines in presliding came out 0.33 kg for 0.42 (0.21 off)
+    gen, outcome = diagnosed("inertia", 124, trace_dir)
+    assert outcome.named == "inertia", _describe(gen, outcome)
+    error = main_parameter_error(gen, outcome)
+    assert error is not None and error <= 0.05, _describe(gen, outcome)
+
+
 @pytest.mark.parametrize(("seed", "confounded"), [(119, True), (101, False)])
 def test_a_trace_that_cannot_tell_speed_from_direction_says_so(
     seed: int, confounded: bool, trace_dir: Path
