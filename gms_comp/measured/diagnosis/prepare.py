@@ -44,7 +44,7 @@ CONSTANT_FORCE_FRACTION = 1e-9
 # effect's shape was searched on held-out rows where it does not act.
 HELD_STARTS_SHARE = 0.5
 # Nor may it take the trace's top speeds from the training rows: if the training rows do
-# not reach TRAIN_SPEED_SHARE of the top speed, the held-out blocks that do are trained
+# not reach TRAIN_TOP_SHARE of the top speed, the held-out blocks that do are trained
 # on. A velocity law is otherwise extrapolated to the speeds it is judged at: on an
 # independent trace every row above 20 mm/s (a 36 mm/s stroke, 1.6 % of the trace) was
 # in one held-out block, and a level still rising at 10 mm/s (the truth's, fitted as well
@@ -58,7 +58,7 @@ HELD_STARTS_SHARE = 0.5
 # 101-130; the only one) both 7.4 m/s^2 ramps were held out and the training rows reached
 # 0.55: 0.33 kg fitted for a true 0.42 (joint fit on the training rows 0.26, on every row
 # 0.42); trained on, 0.41.
-TRAIN_SPEED_SHARE = 0.8
+TRAIN_TOP_SHARE = 0.8
 
 # An encoder's step: seen in at least STEP_SHARE of the nonzero steps, and at least
 # QUANTISED_SHARE of them whole multiples of it within STEP_TOLERANCE (of one step).
@@ -226,9 +226,9 @@ def held_third(
 
 def top_blocks(block: IntArray, held: BoolArray, size: FloatArray) -> BoolArray:
     """The rows of the ``held`` blocks (``block``: each sample's) that reach
-    ``TRAIN_SPEED_SHARE`` of the top ``size`` (a speed, an acceleration's magnitude), if
+    ``TRAIN_TOP_SHARE`` of the top ``size`` (a speed, an acceleration's magnitude), if
     the training rows do not (else none): they are trained on instead."""
-    reach = TRAIN_SPEED_SHARE * float(np.max(size))
+    reach = TRAIN_TOP_SHARE * float(np.max(size))
     if np.any(size[~held] >= reach):
         return np.zeros(block.size, dtype=bool)
     return np.isin(block, np.unique(block[held & (size >= reach)]))

@@ -69,7 +69,8 @@ WHOLE_ROWS = (fx.DwellTime,)
 # Searched with the level: 0.276 over 9.92 s.
 JOINT_LEVEL_STEPS = (0.05, float(np.log(2.0)), float(np.log(1.3)))
 JOINT_LEVEL_EVALS = 60
-LEVEL_TRADED: dict[type[fx.Effect], str] = {fx.Stribeck: "v_s_m_per_s", fx.Drift: "tau_s"}
+# Searched in this order of preference; each has one shape parameter (its SHAPE).
+LEVEL_TRADED: tuple[type[fx.Effect], ...] = (fx.Stribeck, fx.Drift)
 
 
 @dataclass(frozen=True)
@@ -169,7 +170,7 @@ def _level_with_shape(
     if at is None or not isinstance(basis, FreeBasis):
         return None
     effect = chosen[at].effect
-    key = LEVEL_TRADED[effect]
+    (key,) = effect.SHAPE
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in baseline.prepared.parts)
     ranges = effect.shape_bounds(baseline.parts[0].ctx, baseline.presliding_m)
     bounds = [SLIP_LEVEL_RANGE, *(

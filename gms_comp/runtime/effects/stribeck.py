@@ -52,6 +52,6 @@ class Stribeck(Effect):
         2 % at the top speed, the grid's top). A bump still 37 % high at the top speed
         (v_s = 36 mm/s, the bound before) was ranked above an independent trace's viscous
         term while its top speeds were held out; with them trained on, the two bounds
-        give the same names there (prepare.TRAIN_SPEED_SHARE)."""
+        give the same names there (prepare.TRAIN_TOP_SHARE)."""
         vmax = top_speed(ctx)
         return {"v_s_m_per_s": (vmax / 1000, vmax / 2)}
