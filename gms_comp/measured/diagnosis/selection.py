@@ -80,12 +80,13 @@ class Selection:
 def local_search(
     opt: Option, cost: Callable[[Option], float], start_cost: float,
     bounds: dict[str, tuple[float, float]], fixed: tuple[str, ...] = (),
+    steps: tuple[float, ...] = REFINE_STEPS,
 ) -> tuple[Option, float]:  # fmt: skip
-    """Bounded local search on ``opt``'s shape parameters but ``fixed`` (relative steps
-    shrinking from the grids' spacing, each value kept inside ``bounds``, at most
-    ``MAX_PASSES`` passes per step), so that they are not limited to the grid."""
+    """Bounded local search on ``opt``'s shape parameters but ``fixed`` (relative
+    ``steps`` shrinking from the grids' spacing, each value kept inside ``bounds``, at
+    most ``MAX_PASSES`` passes per step), so that they are not limited to the grid."""
     best, best_cost = opt, start_cost
-    for step in REFINE_STEPS:
+    for step in steps:
         for _ in range(MAX_PASSES):
             improved = False
             for key in opt.shape:
@@ -210,8 +211,10 @@ def _refine(scorer: Scorer, best: Trial, presliding_m: float) -> Trial:
         trials[id(opt)] = trial
         return trial.heldout_rms_N
 
-    bounds = best.option.effect.shape_bounds(scorer.parts[0].ctx, presliding_m)
-    opt, _ = local_search(best.option, cost, best.heldout_rms_N, bounds)
+    effect, ctx = best.option.effect, scorer.parts[0].ctx
+    bounds = effect.shape_bounds(ctx, presliding_m)
+    steps = effect.shape_steps(ctx) or REFINE_STEPS
+    opt, _ = local_search(best.option, cost, best.heldout_rms_N, bounds, (), steps)
     return best if opt is best.option else trials[id(opt)]
 
 

@@ -79,6 +79,12 @@ class Effect:
         return {}
 
     @classmethod
+    def shape_steps(cls, ctx: Context) -> tuple[float, ...] | None:
+        """Relative steps, shrinking, of the local search on the shape after the grid;
+        None: the diagnosis's own (an effect whose grid is finer than they are says so)."""
+        return None
+
+    @classmethod
     def consistent_shape(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Shape:
         """The shape that agrees with the fitted ``coefficients`` (an effect whose shape
         depends on its own size, as a dwell gain's windows do on the gain); ``shape``

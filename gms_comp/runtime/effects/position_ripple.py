@@ -17,6 +17,10 @@ from gms_comp.runtime.effects.path import Context
 # into position bins of at most an eighth of the shortest wavelength (at most SCAN_BINS).
 SCAN_POINTS = 600
 SCAN_BINS = 20000
+# Around each of the three strongest peaks, FINE_STEPS wavelengths per scan step on
+# either side; then REFINED_STEPS shrinking steps of the local search (see shape_steps).
+FINE_STEPS = 3
+REFINED_STEPS = 4
 # The fewest periods of a ripple over the stroke that the diagnosis fits.
 MIN_PERIODS = 1.5
 
@@ -74,8 +78,18 @@ class PositionRipple(Effect):
         return [
             {"wavelength_m": float(v)}
             for i in peaks
-            for v in np.geomspace(grid[i] / ratio, grid[i] * ratio, 7)
+            for v in np.geomspace(grid[i] / ratio, grid[i] * ratio, 2 * FINE_STEPS + 1)
         ]
+
+    @classmethod
+    def shape_steps(cls, ctx: Context) -> tuple[float, ...]:
+        """From half the fine grid's spacing down by thirds (``REFINED_STEPS`` steps): the
+        phase of a ripple over n periods moves 2 pi n times the wavelength's relative
+        error, so a grid spaced for the peaks leaves it off by a radian over a long
+        stroke."""
+        lo, hi = cls._range(ctx)
+        fine = (max(hi, lo) / lo) ** (1.0 / ((SCAN_POINTS - 1) * FINE_STEPS))
+        return tuple(float(fine ** (0.5 / 3**k)) for k in range(REFINED_STEPS))
 
     @classmethod
     def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
