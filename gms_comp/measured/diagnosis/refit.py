@@ -36,13 +36,7 @@ from gms_comp.measured.diagnosis.basis import FreeBasis
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, design, effect_of, widths
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
-from gms_comp.measured.diagnosis.selection import (
-    REFINE_STEPS,
-    Selection,
-    admissible,
-    agreed,
-    local_search,
-)
+from gms_comp.measured.diagnosis.selection import Selection, admissible, agreed, local_search
 from gms_comp.measured.diagnosis.slip_level import SLIP_LEVEL_RANGE, transition_range
 from gms_comp.runtime import effects as fx
 
@@ -50,7 +44,8 @@ JOINT_REFITS = 3
 # A reversal transient's length is among them: the selection chose it by held-out RMS
 # on the blind baseline's elements, which had taken part of the transient; refitted with
 # the elements, another length fits (independent reversal_transient-105: A 1.29 N over
-# 18 um for a true 0.92 N over 90 um; searched again, 0.79 N over 69 um).
+# 18 um for a true 0.92 N over 90 um; searched again, 0.79 N over 69 um). A ripple's
+# wavelength too, in its own fine steps, once the elements are placed again.
 REFIT_SHAPES = (fx.DwellTime, fx.Drift, fx.Stribeck, fx.ReversalTransient, fx.PositionRipple)
 # Effects of the position and of the distance from a reversal: the blind baseline's
 # elements are placed with them in the force, before any effect is known, and take part
@@ -341,7 +336,7 @@ def _refine_shape(
             if cost < first_cost:
                 first, first_cost = trial, cost
     bounds = opt.effect.shape_bounds(parts[0].ctx, presliding_m)
-    steps = opt.effect.shape_steps(parts[0].ctx) or REFINE_STEPS
+    steps = opt.effect.shape_steps(parts[0].ctx)
     best = local_search(
         first, lambda t: settled(t)[2], first_cost, bounds, opt.effect.SET_BY_SIZE, steps
     )

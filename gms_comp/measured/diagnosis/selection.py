@@ -10,7 +10,8 @@ a fit that did not see it (the held-out rows may hold none of its events); and i
 it must change the model force somewhere by ``min_effect_fraction`` of the sliding force
 (on clean traces tiny stray terms always lower the held-out error a little). Every
 search here is bounded: rounds by ``max_effects``, grids by the catalogue, local search
-by ``REFINE_STEPS`` x ``MAX_PASSES`` inside each effect's shape bounds.
+by ``REFINE_STEPS`` (or an effect's own ``shape_steps``) x ``MAX_PASSES`` inside each
+effect's shape bounds.
 """
 
 from __future__ import annotations
@@ -80,13 +81,14 @@ class Selection:
 def local_search(
     opt: Option, cost: Callable[[Option], float], start_cost: float,
     bounds: dict[str, tuple[float, float]], fixed: tuple[str, ...] = (),
-    steps: tuple[float, ...] = REFINE_STEPS,
+    steps: tuple[float, ...] | None = None,
 ) -> tuple[Option, float]:  # fmt: skip
     """Bounded local search on ``opt``'s shape parameters but ``fixed`` (relative
-    ``steps`` shrinking from the grids' spacing, each value kept inside ``bounds``, at
-    most ``MAX_PASSES`` passes per step), so that they are not limited to the grid."""
+    ``steps`` shrinking from the grids' spacing, ``REFINE_STEPS`` unless given, each
+    value kept inside ``bounds``, at most ``MAX_PASSES`` passes per step), so that they
+    are not limited to the grid."""
     best, best_cost = opt, start_cost
-    for step in steps:
+    for step in steps or REFINE_STEPS:
         for _ in range(MAX_PASSES):
             improved = False
             for key in opt.shape:
@@ -213,8 +215,9 @@ def _refine(scorer: Scorer, best: Trial, presliding_m: float) -> Trial:
 
     effect, ctx = best.option.effect, scorer.parts[0].ctx
     bounds = effect.shape_bounds(ctx, presliding_m)
-    steps = effect.shape_steps(ctx) or REFINE_STEPS
-    opt, _ = local_search(best.option, cost, best.heldout_rms_N, bounds, (), steps)
+    opt, _ = local_search(
+        best.option, cost, best.heldout_rms_N, bounds, (), effect.shape_steps(ctx)
+    )
     return best if opt is best.option else trials[id(opt)]
 
 
