@@ -47,8 +47,30 @@ REACH_RANGE = (5e-3, 1.5)
 # 0.48-0.91, none: 0.62-0.95).
 SPREAD = 0.1
 SPREAD_ELEMENTS = 5
+# Where a context keeps the held elements' forces at its starts (they depend on its GMS
+# and path only, not on the shape).
+HELD_KEY = "dwell_time.held_at_starts"
 # Layout of the state after the 6 element vectors: last position, last rest flag, first.
 _PREV_X, _PREV_REST, _FIRST = range(3)
+
+
+@numba.njit(cache=True, inline="always")
+def _rule(
+    fi: float, di: float, gi: float, ki: float, wi: float, dx: float, level: float
+) -> tuple[float, float, float]:
+    """One element's force, slip direction and hold after a move ``dx``: a Maxwell-slip
+    element (the GMS kernel's rule, rate-independent) that, while held since a start
+    (hold g >= 1), slips only beyond g times its limit at the current speed, and is the
+    kernel's element again (g = 0) once it has. Branch-free, so that a loop of it
+    vectorises."""
+    sliding = di != 0.0 and di * dx >= 0.0
+    stretch = (fi if di == 0.0 else di * wi) + ki * dx
+    threshold = wi * level * gi if gi >= 1.0 else wi
+    up = stretch > threshold
+    down = stretch < -threshold
+    f = di * level * wi if sliding else (level * wi if up else (-level * wi if down else stretch))
+    d = di if sliding else (1.0 if up else (-1.0 if down else 0.0))
+    return f, d, (gi if sliding else (0.0 if up or down else gi))
 
 
 @numba.njit(cache=True)
@@ -65,11 +87,9 @@ def _raised_run(
     raised ones' alike, then the scalars) is advanced in place, so a
     stream of one-sample calls equals one batch.
 
-    Each element is a Maxwell-slip element (the GMS kernel's rule, rate-independent)
-    that, while held since a start (hold g >= 1), slips only beyond g times its limit at
-    the current speed, and is the kernel's element again (g = 0) once it has. The held
-    and the raised elements are one vector of 2 n, updated without branches (so that
-    the compiler vectorises it), then summed in order."""
+    Each element follows :func:`_rule`. The held and the raised elements are one vector
+    of 2 n, updated without branches (so that the compiler vectorises it), then summed
+    in order."""
     n = k.size
     tail = 6 * n
     # fresh local copies, the held elements then the raised ones: they alias nothing
@@ -93,23 +113,91 @@ def _raised_run(
                 d[n + i], g[n + i] = 0.0, gain
         state[tail + _PREV_REST] = resting[j]
         for i in range(2 * n):
-            fi, di, gi, wi = f[i], d[i], g[i], ww[i]
-            sliding = di != 0.0 and di * dx >= 0.0
-            stretch = (fi if di == 0.0 else di * wi) + kk[i] * dx
-            threshold = wi * level * gi if gi >= 1.0 else wi
-            up = stretch > threshold
-            down = stretch < -threshold
-            f[i] = di * level * wi if sliding else (
-                level * wi if up else (-level * wi if down else stretch)
-            )  # fmt: skip
-            d[i] = di if sliding else (1.0 if up else (-1.0 if down else 0.0))
-            g[i] = gi if sliding else (0.0 if up or down else gi)
+            f[i], d[i], g[i] = _rule(f[i], d[i], g[i], kk[i], ww[i], dx, level)
         extra = 0.0
         for i in range(n):
             extra += f[n + i] - f[i]
         out[j] = extra
     state[0:n], state[n : 2 * n], state[2 * n : 3 * n] = f[:n], d[:n], g[:n]
     state[3 * n : 4 * n], state[4 * n : 5 * n], state[5 * n : 6 * n] = f[n:], d[n:], g[n:]
+
+
+@numba.njit(cache=True)
+def _held_at_starts(
+    k: FloatArray, w: FloatArray, scalars: FloatArray, x: FloatArray, v: FloatArray,
+    resting: FloatArray,
+) -> FloatArray:  # fmt: skip
+    """The held elements' forces at every start (a row each), from the virgin state:
+    :func:`_raised_run`'s first n elements, which no shape changes."""
+    n = k.size
+    starts = 0
+    for j in range(1, x.size):
+        if resting[j] == 0.0 and resting[j - 1] == 1.0:
+            starts += 1
+    out = np.zeros((starts, n))
+    f, d, g = np.zeros(n), np.zeros(n), np.zeros(n)
+    row = 0
+    for j in range(x.size):
+        if j > 0 and resting[j] == 0.0 and resting[j - 1] == 1.0:
+            d[:] = 0.0
+            g[:] = 1.0
+            out[row] = f
+            row += 1
+        dx = x[j] - x[j - 1] if j > 0 else 0.0
+        level = _level(abs(v[j]), scalars)
+        for i in range(n):
+            f[i], d[i], g[i] = _rule(f[i], d[i], g[i], k[i], w[i], dx, level)
+    return out
+
+
+@numba.njit(cache=True)
+def _raised_windows(
+    k: FloatArray, w: FloatArray, scalars: FloatArray, reach: float, tau: float,
+    x: FloatArray, v: FloatArray, resting: FloatArray, dwell: FloatArray,
+    held: FloatArray, out: FloatArray,
+) -> None:  # fmt: skip
+    """:func:`_raised_run` from the virgin state, bit for bit, element by element only
+    while it differs: once an element's raised copy has slipped to the same force,
+    direction and hold as its held one, the two stay equal (and add exactly 0) until the
+    next start, where both take the held force kept at that start (``held``:
+    :func:`_held_at_starts`). On independent traces 2-4 % of the element steps are left,
+    and a column costs 2-5 ms instead of 17-19 ms."""
+    n = k.size
+    fh, dh, gh = np.zeros(n), np.zeros(n), np.zeros(n)
+    fr, dr, gr = np.zeros(n), np.zeros(n), np.zeros(n)
+    live = np.zeros(n, dtype=np.int64)  # the elements that differ, in order
+    is_live = np.zeros(n, dtype=np.bool_)
+    m = 0
+    row = 0
+    for j in range(x.size):
+        if j > 0 and resting[j] == 0.0 and resting[j - 1] == 1.0:
+            gain = 1.0 + reach * math.log1p(dwell[j] / tau)
+            for i in range(n):
+                if not is_live[i]:
+                    fh[i] = fr[i] = held[row, i]
+                dh[i], gh[i], dr[i], gr[i] = 0.0, 1.0, 0.0, gain
+                live[i], is_live[i] = i, True
+            m = n
+            row += 1
+        if m == 0:
+            out[j] = 0.0
+            continue
+        dx = x[j] - x[j - 1] if j > 0 else 0.0
+        level = _level(abs(v[j]), scalars)
+        kept = 0
+        extra = 0.0
+        for q in range(m):
+            i = live[q]
+            fh[i], dh[i], gh[i] = _rule(fh[i], dh[i], gh[i], k[i], w[i], dx, level)
+            fr[i], dr[i], gr[i] = _rule(fr[i], dr[i], gr[i], k[i], w[i], dx, level)
+            extra += fr[i] - fh[i]
+            if fr[i] == fh[i] and dr[i] == dh[i] and gr[i] == gh[i]:
+                is_live[i] = False
+            else:
+                live[kept] = i
+                kept += 1
+        out[j] = extra
+        m = kept
 
 
 class RaisedLimits:
@@ -149,6 +237,25 @@ class RaisedLimits:
         )  # fmt: skip
         return self.scale * out
 
+    def from_rest(self, ctx: Context) -> FloatArray:
+        """:meth:`run` from the virgin state (this object's state is neither read nor
+        changed), the elements stepped only where the raised ones differ
+        (:func:`_raised_windows`); the held elements at the starts are kept in ``ctx``."""
+        x, v, resting, dwell = (
+            np.ascontiguousarray(a, dtype=np.float64)
+            for a in (ctx.position_m, ctx.velocity_m_s, ctx.resting, ctx.dwell_s)
+        )
+        held = ctx.derived.get(HELD_KEY)
+        if held is None:
+            held = ctx.derived[HELD_KEY] = _held_at_starts(
+                self.k, self.w, self.scalars, x, v, resting
+            )
+        out = np.empty(x.size)
+        _raised_windows(
+            self.k, self.w, self.scalars, self.reach, self.tau_s, x, v, resting, dwell, held, out
+        )
+        return self.scale * out
+
     def step(self, position_m: float, velocity_m_s: float, resting: float, dwell_s: float) -> float:
         """One sample of :meth:`run`, on preallocated buffers (a servo cycle's call)."""
         x, v, rest, dwell = self._sample
@@ -184,7 +291,7 @@ class DwellTime(Effect):
         raised = RaisedLimits(
             _needs(ctx.gms, "context"), shape["tau_s"], shape["reach"], 1 / shape["reach"]
         )
-        return raised.run(ctx)[:, None]
+        return raised.from_rest(ctx)[:, None]
 
     @classmethod
     def from_coefficients(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Effect:

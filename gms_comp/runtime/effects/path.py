@@ -8,6 +8,7 @@ that serves both the batch :meth:`Context.along` and the streaming
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numba
@@ -233,6 +234,12 @@ class Context:
         return cls.with_path(
             t, x, v, np.asarray(acceleration_m_s2, float), np.asarray(gms_force_N, float), path, dt
         )
+
+    @functools.cached_property
+    def derived(self) -> dict[str, FloatArray]:
+        """Arrays an effect derives from this context alone, kept for its next call (a
+        dwell column's held elements at the starts: the same for every shape, 10 ms)."""
+        return {}
 
     def after_rest(self) -> BoolArray:
         """The samples after the first rest: every motion there resumed from one (a rest
