@@ -355,11 +355,13 @@ def simulate(
 
 
 def simulate_elements(
-    params: GmsParams, position_m: ArrayLike, velocity_m_s: ArrayLike
+    params: GmsParams, position_m: ArrayLike, velocity_m_s: ArrayLike, spare: int = 0
 ) -> FloatArray:
     """Each element's force along a sampled trajectory from the virgin state, shape
     (samples, elements): :func:`simulate`'s force is their row sums plus the viscous
     force. One pass for all elements (the diagnosis's and the reduction's basis columns).
+    With ``spare``, that many more columns follow, not set: for the caller's own columns
+    of one design (stacked afterwards, they cost a copy of the whole design).
 
     Examples
     --------
@@ -368,7 +370,7 @@ def simulate_elements(
     [[0.0, 0.0], [0.05, 0.005], [0.1, 0.1]]
     """
     x, v = _path(position_m, velocity_m_s)
-    out = np.empty((x.size, params.n_elements))
+    out = np.empty((x.size, params.n_elements + spare))
     if x.size:
         _run_elements(params.stiffness_N_per_m, params.limit_N, params.scalars, x, v, out)
     return out

@@ -150,26 +150,40 @@ class Baseline:
         }
 
 
+def _design(part: Part, basis: Basis, drive: bool, nuisance: bool) -> Columns:
+    """One part's design: the basis's columns, the acceleration for a drive force, and
+    with ``nuisance`` a viscous term (c v, c >= 0) and an offset of either sign, written
+    after the basis's columns in one array (stacked afterwards, they copied the whole
+    design: 4 of the 17 ms of a slip level's trial)."""
+    own = ([part.kin.acceleration_m_s2] if drive else []) + (
+        [part.kin.velocity_m_s, np.ones(part.kin.velocity_m_s.size)] if nuisance else []
+    )
+    values = basis.columns(part.kin, len(own))
+    n = values.shape[1] - len(own)
+    for i, column in enumerate(own):
+        values[:, n + i] = column
+    lower = [0.0] * (n + int(drive)) + ([0.0, -np.inf] if nuisance else [])
+    return Columns(values, np.array(lower))
+
+
 def _designs(
     prepared: Prepared, basis: Basis, nuisance: bool = False
 ) -> list[tuple[FloatArray, Columns]]:
+    """Each part's GMS columns and design (the same array where the design has no other
+    columns)."""
     out = []
     for p in prepared.parts:
-        phi = basis.columns(p.kin)
-        cols = [phi, p.kin.acceleration_m_s2[:, None]] if prepared.drive else [phi]
-        lower = [0.0] * (phi.shape[1] + len(cols) - 1)
-        if nuisance:  # c v >= 0 and an offset of either sign
-            cols += [p.kin.velocity_m_s[:, None], np.ones((phi.shape[0], 1))]
-            lower += [0.0, -np.inf]
-        values = np.column_stack(cols)
-        out.append((phi, Columns(values, np.array(lower))))
+        cols = _design(p, basis, prepared.drive, nuisance)
+        n = cols.values.shape[1] - int(prepared.drive) - 2 * int(nuisance)
+        phi = cols.values if n == cols.values.shape[1] else np.ascontiguousarray(cols.values[:, :n])
+        out.append((phi, cols))
     return out
 
 
 def _part_designs(prepared: Prepared, basis: Basis, nuisance: bool = False) -> list[PartDesign]:
     return [
-        PartDesign(cols, p.force_N, p.train, p.held)
-        for p, (_, cols) in zip(prepared.parts, _designs(prepared, basis, nuisance), strict=True)
+        PartDesign(_design(p, basis, prepared.drive, nuisance), p.force_N, p.train, p.held)
+        for p in prepared.parts
     ]
 
 

@@ -60,10 +60,11 @@ class FreeBasis:
     transition_velocity_m_s: float = 1e-4
     transition_exponent: float = 2.0
 
-    def columns(self, kin: Kinematics) -> FloatArray:
-        """phi_i: the force of a unit-limit element with break-away ``breakaway_m[i]``."""
+    def columns(self, kin: Kinematics, spare: int = 0) -> FloatArray:
+        """phi_i: the force of a unit-limit element with break-away ``breakaway_m[i]``
+        (then ``spare`` columns not set, :func:`~gms_comp.gms.simulate_elements`)."""
         unit = self.gms(np.ones(self.breakaway_m.size))
-        return simulate_elements(unit, kin.position_m, kin.velocity_m_s)
+        return simulate_elements(unit, kin.position_m, kin.velocity_m_s, spare)
 
     def gms(self, coefficients: FloatArray, breakaway_m: FloatArray | None = None) -> GmsParams:
         """The GMS whose element i has limit ``coefficients[i]``; an element with zero
@@ -94,9 +95,11 @@ class TableBasis:
         """W_i / k_i of every element."""
         return np.asarray(self.params.limit_N / self.params.stiffness_N_per_m)
 
-    def columns(self, kin: Kinematics) -> FloatArray:
-        """The table's force as one column."""
-        return simulate(self.params, kin.position_m, kin.velocity_m_s)[0][:, None]
+    def columns(self, kin: Kinematics, spare: int = 0) -> FloatArray:
+        """The table's force as one column (then ``spare`` columns not set)."""
+        out = np.empty((kin.position_m.size, 1 + spare))
+        out[:, 0] = simulate(self.params, kin.position_m, kin.velocity_m_s)[0]
+        return out
 
     def gms(self, coefficients: FloatArray) -> GmsParams:
         """The table with every limit scaled by ``coefficients[0]``."""

@@ -11,6 +11,7 @@ instead of n x (m + q)^2), then a bounded solve in m + q unknowns.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -117,10 +118,18 @@ class GramDesign:
         )
         self._yy = float(sum(float(y @ y) for y in self._train_y))
         self._n_train = sum(y.size for y in self._train_y)
-        self._held_a = [
+
+    @functools.cached_property
+    def _held_a(self) -> list[FloatArray]:
+        """The held-out rows of each part's design, gathered when first needed (a slip
+        level's or a knot's trial needs the training rows alone)."""
+        return [
             _gather(p.columns.values, r) for p, r in zip(self.parts, self._held_rows, strict=True)
         ]
-        self._held_y = np.concatenate([p.force_N[p.held] for p in self.parts])
+
+    @functools.cached_property
+    def _held_y(self) -> FloatArray:
+        return np.concatenate([p.force_N[p.held] for p in self.parts])
 
     def fit(self) -> FloatArray:
         """Coefficients of the design fitted on the training rows."""
@@ -177,9 +186,10 @@ class GramDesign:
         """Replace column ``i`` by ``values`` (one full-length column per part) in place;
         ``replaced``: :meth:`column_replaced`'s result for them, if already at hand."""
         self.gram, self.rhs = replaced or self.column_replaced(i, values)
+        held = self._held_a  # gathered from the parts' columns, before this one is replaced
         for part, v in enumerate(values):
             self._train_a[part][:, i] = v[self._train_rows[part]]
-            self._held_a[part][:, i] = v[self._held_rows[part]]
+            held[part][:, i] = v[self._held_rows[part]]
 
     def left_out(
         self, extra: Sequence[Columns], events: Sequence[Sequence[IntArray]], folds: int
