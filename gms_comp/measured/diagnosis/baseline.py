@@ -150,11 +150,12 @@ class Baseline:
         }
 
 
-def _design(part: Part, basis: Basis, drive: bool, nuisance: bool) -> Columns:
-    """One part's design: the basis's columns, the acceleration for a drive force, and
-    with ``nuisance`` a viscous term (c v, c >= 0) and an offset of either sign, written
-    after the basis's columns in one array (stacked afterwards, they copied the whole
-    design: 4 of the 17 ms of a slip level's trial)."""
+def _design(part: Part, basis: Basis, drive: bool, nuisance: bool) -> tuple[int, Columns]:
+    """One part's design and how many of its columns are the basis's: the basis's
+    columns, the acceleration for a drive force, and with ``nuisance`` a viscous term
+    (c v, c >= 0) and an offset of either sign, written after the basis's columns in one
+    array (stacked afterwards, they copied the whole design: 4 of the 17 ms of a slip
+    level's trial)."""
     own = ([part.kin.acceleration_m_s2] if drive else []) + (
         [part.kin.velocity_m_s, np.ones(part.kin.velocity_m_s.size)] if nuisance else []
     )
@@ -163,7 +164,7 @@ def _design(part: Part, basis: Basis, drive: bool, nuisance: bool) -> Columns:
     for i, column in enumerate(own):
         values[:, n + i] = column
     lower = [0.0] * (n + int(drive)) + ([0.0, -np.inf] if nuisance else [])
-    return Columns(values, np.array(lower))
+    return n, Columns(values, np.array(lower))
 
 
 def _designs(
@@ -173,8 +174,7 @@ def _designs(
     columns)."""
     out = []
     for p in prepared.parts:
-        cols = _design(p, basis, prepared.drive, nuisance)
-        n = cols.values.shape[1] - int(prepared.drive) - 2 * int(nuisance)
+        n, cols = _design(p, basis, prepared.drive, nuisance)
         phi = cols.values if n == cols.values.shape[1] else np.ascontiguousarray(cols.values[:, :n])
         out.append((phi, cols))
     return out
@@ -182,7 +182,7 @@ def _designs(
 
 def _part_designs(prepared: Prepared, basis: Basis, nuisance: bool = False) -> list[PartDesign]:
     return [
-        PartDesign(_design(p, basis, prepared.drive, nuisance), p.force_N, p.train, p.held)
+        PartDesign(_design(p, basis, prepared.drive, nuisance)[1], p.force_N, p.train, p.held)
         for p in prepared.parts
     ]
 

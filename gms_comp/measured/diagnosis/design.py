@@ -186,7 +186,7 @@ class GramDesign:
         """Replace column ``i`` by ``values`` (one full-length column per part) in place;
         ``replaced``: :meth:`column_replaced`'s result for them, if already at hand."""
         self.gram, self.rhs = replaced or self.column_replaced(i, values)
-        held = self._held_a  # gathered from the parts' columns, before this one is replaced
+        held = self._held_a  # (the parts' columns never change: as the constructor's)
         for part, v in enumerate(values):
             self._train_a[part][:, i] = v[self._train_rows[part]]
             held[part][:, i] = v[self._held_rows[part]]
