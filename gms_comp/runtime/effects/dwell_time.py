@@ -47,8 +47,8 @@ REACH_RANGE = (5e-3, 1.5)
 # 0.48-0.91, none: 0.62-0.95).
 SPREAD = 0.1
 SPREAD_ELEMENTS = 5
-# Where a context keeps the held elements' forces at its starts (they depend on its GMS
-# and path only, not on the shape).
+# Where a context keeps its GMS's held elements' forces at its starts (they depend on the
+# GMS and the path only, not on the shape).
 HELD_KEY = "dwell_time.held_at_starts"
 # Layout of the state after the 6 element vectors: last position, last rest flag, first.
 _PREV_X, _PREV_REST, _FIRST = range(3)
@@ -228,31 +228,25 @@ class RaisedLimits:
         """The (scaled) extra force along ``ctx``, continuing from the current state."""
         out = np.empty(ctx.position_m.size)
         _raised_run(
-            self.k, self.w, self.scalars, self.reach, self.tau_s,
-            np.ascontiguousarray(ctx.position_m, dtype=np.float64),
-            np.ascontiguousarray(ctx.velocity_m_s, dtype=np.float64),
-            np.ascontiguousarray(ctx.resting, dtype=np.float64),
-            np.ascontiguousarray(ctx.dwell_s, dtype=np.float64),
-            self.state, out,
-        )  # fmt: skip
+            self.k, self.w, self.scalars, self.reach, self.tau_s, *_path(ctx), self.state, out
+        )
         return self.scale * out
 
-    def from_rest(self, ctx: Context) -> FloatArray:
+    def held_at_starts(self, ctx: Context) -> FloatArray:
+        """These elements' held forces at ``ctx``'s starts (:func:`_held_at_starts`): the
+        same for every ``tau_s`` and ``reach``."""
+        x, v, resting, _ = _path(ctx)
+        return _held_at_starts(self.k, self.w, self.scalars, x, v, resting)
+
+    def from_rest(self, ctx: Context, held: FloatArray | None = None) -> FloatArray:
         """:meth:`run` from the virgin state (this object's state is neither read nor
         changed), the elements stepped only where the raised ones differ
-        (:func:`_raised_windows`); the held elements at the starts are kept in ``ctx``."""
-        x, v, resting, dwell = (
-            np.ascontiguousarray(a, dtype=np.float64)
-            for a in (ctx.position_m, ctx.velocity_m_s, ctx.resting, ctx.dwell_s)
-        )
-        held = ctx.derived.get(HELD_KEY)
-        if held is None:
-            held = ctx.derived[HELD_KEY] = _held_at_starts(
-                self.k, self.w, self.scalars, x, v, resting
-            )
-        out = np.empty(x.size)
+        (:func:`_raised_windows`); ``held``: :meth:`held_at_starts` on ``ctx``, if at
+        hand."""
+        held = self.held_at_starts(ctx) if held is None else held
+        out = np.empty(ctx.position_m.size)
         _raised_windows(
-            self.k, self.w, self.scalars, self.reach, self.tau_s, x, v, resting, dwell, held, out
+            self.k, self.w, self.scalars, self.reach, self.tau_s, *_path(ctx), held, out
         )
         return self.scale * out
 
@@ -263,6 +257,15 @@ class RaisedLimits:
         _raised_run(self.k, self.w, self.scalars, self.reach, self.tau_s,
                     x, v, rest, dwell, self.state, self._out)  # fmt: skip
         return self.scale * float(self._out[0])
+
+
+def _path(ctx: Context) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Position, velocity, rest flag and dwell along ``ctx`` as the kernels take them."""
+    x, v, resting, dwell = (
+        np.ascontiguousarray(a, dtype=np.float64)
+        for a in (ctx.position_m, ctx.velocity_m_s, ctx.resting, ctx.dwell_s)
+    )
+    return x, v, resting, dwell
 
 
 def _needs(gms: GmsParams | None, where: str) -> GmsParams:
@@ -291,7 +294,11 @@ class DwellTime(Effect):
         raised = RaisedLimits(
             _needs(ctx.gms, "context"), shape["tau_s"], shape["reach"], 1 / shape["reach"]
         )
-        return raised.from_rest(ctx)[:, None]
+        # the elements are the context's own GMS's, so what it keeps is theirs
+        held = ctx.derived.get(HELD_KEY)
+        if held is None:
+            held = ctx.derived[HELD_KEY] = raised.held_at_starts(ctx)
+        return raised.from_rest(ctx, held)[:, None]
 
     @classmethod
     def from_coefficients(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Effect:
