@@ -31,7 +31,7 @@ import numpy as np
 from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams, _level
 from gms_comp.runtime.effects.base import Effect, Shape, duration
-from gms_comp.runtime.effects.path import Context
+from gms_comp.runtime.effects.path import REST_HOLD_S, Context
 
 # The time constants the diagnosis considers (s): far below a servo cycle or above a
 # trace's length a dwell gain cannot be told from a constant one.
@@ -105,7 +105,7 @@ def _raised_run(
         dx = x[j] - state[tail + _PREV_X]
         state[tail + _PREV_X] = x[j]
         level = _level(abs(v[j]), scalars)
-        if resting[j] == 0.0 and state[tail + _PREV_REST] == 1.0:
+        if resting[j] == 0.0 and state[tail + _PREV_REST] == 1.0 and dwell[j] >= REST_HOLD_S:
             # the motion resumes: every element sticks where it rested, held
             gain = 1.0 + reach * math.log1p(dwell[j] / tau)
             for i in range(n):
@@ -125,20 +125,20 @@ def _raised_run(
 @numba.njit(cache=True)
 def _held_at_starts(
     k: FloatArray, w: FloatArray, scalars: FloatArray, x: FloatArray, v: FloatArray,
-    resting: FloatArray,
+    resting: FloatArray, dwell: FloatArray,
 ) -> FloatArray:  # fmt: skip
     """The held elements' forces at every start (a row each), from the virgin state:
     :func:`_raised_run`'s first n elements, which no shape changes."""
     n = k.size
     starts = 0
     for j in range(1, x.size):
-        if resting[j] == 0.0 and resting[j - 1] == 1.0:
+        if resting[j] == 0.0 and resting[j - 1] == 1.0 and dwell[j] >= REST_HOLD_S:
             starts += 1
     out = np.zeros((starts, n))
     f, d, g = np.zeros(n), np.zeros(n), np.zeros(n)
     row = 0
     for j in range(x.size):
-        if j > 0 and resting[j] == 0.0 and resting[j - 1] == 1.0:
+        if j > 0 and resting[j] == 0.0 and resting[j - 1] == 1.0 and dwell[j] >= REST_HOLD_S:
             d[:] = 0.0
             g[:] = 1.0
             out[row] = f
@@ -170,7 +170,7 @@ def _raised_windows(
     m = 0
     row = 0
     for j in range(x.size):
-        if j > 0 and resting[j] == 0.0 and resting[j - 1] == 1.0:
+        if j > 0 and resting[j] == 0.0 and resting[j - 1] == 1.0 and dwell[j] >= REST_HOLD_S:
             gain = 1.0 + reach * math.log1p(dwell[j] / tau)
             for i in range(n):
                 if not is_live[i]:
@@ -235,8 +235,7 @@ class RaisedLimits:
     def held_at_starts(self, ctx: Context) -> FloatArray:
         """These elements' held forces at ``ctx``'s starts (:func:`_held_at_starts`): the
         same for every ``tau_s`` and ``reach``."""
-        x, v, resting, _ = _path(ctx)
-        return _held_at_starts(self.k, self.w, self.scalars, x, v, resting)
+        return _held_at_starts(self.k, self.w, self.scalars, *_path(ctx))
 
     def from_rest(self, ctx: Context, held: FloatArray | None = None) -> FloatArray:
         """:meth:`run` from the virgin state (this object's state is neither read nor
@@ -357,12 +356,14 @@ class DwellTime(Effect):
 
 def shortest_tau(ctx: Context) -> float:
     """The shortest time constant a dwell gain is fitted with: a tenth of the median
-    standstill. Far below every dwell, ln(1 + t_d / tau) hardly changes with the dwell
-    (from 0.05 to 3 s at tau = 1 ms: 3.9 to 8.0), so the gain is the same at every start,
-    and on an effect-free trace such a column took up the baseline's mismatch at starts
-    (held-out gain 4 %); at a tenth of the median it still grows 2.2 x from a fifth of
-    the median dwell to the median."""
-    starts = np.flatnonzero((ctx.resting[1:] == 0.0) & (ctx.resting[:-1] == 1.0)) + 1
-    if starts.size == 0:
+    standstill before the starts (rests of at least the path's ``REST_HOLD_S``; shorter
+    ones raise no limits). Far below every dwell, ln(1 + t_d / tau) hardly changes with
+    the dwell (from 0.05 to 3 s at tau = 1 ms: 3.9 to 8.0), so the gain is the same at
+    every start, and on an effect-free trace such a column took up the baseline's
+    mismatch at starts (held-out gain 4 %); at a tenth of the median it still grows 2.2 x
+    from a fifth of the median dwell to the median."""
+    dwells = ctx.dwell_s[ctx.starts()]
+    dwells = dwells[dwells > 0.0]
+    if dwells.size == 0:
         return TAU_RANGE_S[0]
-    return float(np.clip(0.1 * np.median(ctx.dwell_s[starts]), *TAU_RANGE_S))
+    return float(np.clip(0.1 * np.median(dwells), *TAU_RANGE_S))
