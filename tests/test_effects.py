@@ -403,3 +403,27 @@ def test_a_dwell_gain_along_a_trace_is_its_gain_after_the_median_standstill() ->
     moving = fx.Context.along(t[:1000], x[:1000], v[:1000], 0 * t[:1000], 0 * t[:1000])
     assert effect.in_context(moving) == {}  # no standstill ended: nothing to say
     assert fx.Offset(1.0).in_context(ctx) == {}
+
+
+def test_a_dwell_gain_is_lost_where_the_move_turns_back_before_the_element_slips() -> None:
+    """The element of the test above, 1 um on after the rest (less than the (g - 1) d =
+    1.4 um of its raised window), then 3 um back: the extra force rises on the way out,
+    and from the sample where the path's direction turns it is 0 (the raised element
+    becomes the plain one), where a raised element that kept its stretch carried about
+    k 1 um = 0.5 N on through the return."""
+    w, d = 2.0, 4e-6
+    step = 3e-8  # per 0.1 ms sample at 0.3 mm/s
+    out, back = int(1e-6 / step), int(3e-6 / step)
+    v = np.concatenate([np.full(1000, 3e-4), np.zeros(5000), np.full(out, 3e-4),
+                        np.full(back, -3e-4), np.zeros(500)])  # fmt: skip
+    x = np.cumsum(v) * 1e-4
+    t = np.arange(x.size) * 1e-4
+    gms = GmsParams(np.array([w / d]), np.array([w]))
+    force = simulate(gms, x, v)[0]
+    ctx = dataclasses.replace(fx.Context.along(t, x, v, 0 * t, force), gms=gms)
+    extra = fx.DwellTime(0.2, 0.1, 0.2).apply(ctx, force) - force
+    restart = 6000
+    turned = restart + int(np.flatnonzero(ctx.direction[restart:] < 0.0)[0])
+    assert restart + out <= turned <= restart + out + back // 2
+    assert np.max(extra[restart:turned]) > 0.1  # the ramp on the way out
+    assert np.all(extra[turned:] == 0.0)
