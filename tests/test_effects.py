@@ -403,6 +403,10 @@ def test_a_dwell_gain_along_a_trace_is_its_gain_after_the_median_standstill() ->
     moving = fx.Context.along(t[:1000], x[:1000], v[:1000], 0 * t[:1000], 0 * t[:1000])
     assert effect.in_context(moving) == {}  # no standstill ended: nothing to say
     assert fx.Offset(1.0).in_context(ctx) == {}
+    # what the diagnosis sizes it by against its least effect (and 0 without a standstill)
+    assert effect.relative_size(ctx) == figures["gain_after_median_dwell"]
+    assert effect.relative_size(moving) == 0.0
+    assert fx.Offset(1.0).relative_size(ctx) is None
 
 
 def test_a_dwell_gain_is_lost_where_the_move_turns_back_before_the_element_slips() -> None:

@@ -53,7 +53,8 @@ class DiagnosisConfig:
     local_significance_t: float = field(default=3.0, metadata=in_range(0.0, 1e3))
     # ... and only if it changes the model force by at least this fraction of the sliding
     # force (smaller terms do not matter for compensation; on clean traces they are the
-    # free GMS's mismatch with the true one).
+    # free GMS's mismatch with the true one), and an effect sized against the friction it
+    # scales (a dwell's break-away gain after the median standstill) is at least this.
     min_effect_fraction: float = field(default=0.02, metadata=in_range(0.0, 1.0))
     max_effects: int = field(default=6, metadata=in_range(1, 9))
     # ``unknown``: what is left after the best extension still has structure (its mean

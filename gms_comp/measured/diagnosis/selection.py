@@ -147,6 +147,13 @@ def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: floa
         )
     if not worth or not consistent(scorer, trial):
         return False
+    if not trial.option.is_filter:
+        # an effect sized against the friction it scales (a dwell's break-away gain)
+        m = scorer.theta.size
+        effect = trial.option.effect.from_coefficients(trial.theta[m:], trial.option.shape)
+        size = effect.relative_size(scorer.parts[0].ctx)
+        if size is not None and size < cfg.min_effect_fraction:
+            return False
     return float(np.max(np.abs(scorer.change(trial)))) >= cfg.min_effect_fraction * level_N
 
 

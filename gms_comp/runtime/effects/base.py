@@ -104,6 +104,11 @@ class Effect:
         determines better than the parameters themselves (none by default)."""
         return {}
 
+    def relative_size(self, ctx: Context) -> float | None:
+        """The effect's size along ``ctx`` as a fraction of the friction it scales, where
+        that is how it is judged worth keeping (``None``: by the force it changes)."""
+        return None
+
     def apply(self, ctx: Context, force_N: FloatArray) -> FloatArray:
         """The measured force this effect makes of ``force_N`` (batch)."""
         return force_N + self.basis(ctx, self.shape()) @ self.coefficients()

@@ -388,6 +388,13 @@ class DwellTime(Effect):
             "gain_after_median_dwell": self.gamma * math.log1p(median / self.tau_s),
         }
 
+    def relative_size(self, ctx: Context) -> float | None:
+        """The break-away gain after the median standstill (:meth:`in_context`): with
+        the windows fitted to the starts' residual, a gain of 0.3 % (on an independent
+        effect-free trace, a bump of one start the baseline missed) can change the model
+        force by more than its 2 %."""
+        return self.in_context(ctx).get("gain_after_median_dwell", 0.0)
+
     def stream(self, gms: GmsParams | None) -> RaisedLimits:
         """The per-sample form: its elements' state is carried from sample to sample."""
         return RaisedLimits(_needs(gms, "stream"), self.tau_s, self.reach, self.gamma / self.reach)
