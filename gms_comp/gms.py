@@ -34,7 +34,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numba
 import numpy as np
@@ -355,13 +355,16 @@ def simulate(
 
 
 def simulate_elements(
-    params: GmsParams, position_m: ArrayLike, velocity_m_s: ArrayLike, spare: int = 0
-) -> FloatArray:
+    params: GmsParams, position_m: ArrayLike, velocity_m_s: ArrayLike, spare: int = 0,
+    order: Literal["C", "F"] = "C",
+) -> FloatArray:  # fmt: skip
     """Each element's force along a sampled trajectory from the virgin state, shape
     (samples, elements): :func:`simulate`'s force is their row sums plus the viscous
     force. One pass for all elements (the diagnosis's and the reduction's basis columns).
     With ``spare``, that many more columns follow, not set: for the caller's own columns
-    of one design (stacked afterwards, they cost a copy of the whole design).
+    of one design (stacked afterwards, they cost a copy of the whole design). With
+    ``order`` "F" each element's column is contiguous (a third slower to fill for a dozen
+    elements, four times faster to read one column of).
 
     Examples
     --------
@@ -370,7 +373,7 @@ def simulate_elements(
     [[0.0, 0.0], [0.05, 0.005], [0.1, 0.1]]
     """
     x, v = _path(position_m, velocity_m_s)
-    out = np.empty((x.size, params.n_elements + spare))
+    out = np.empty((x.size, params.n_elements + spare), order=order)
     if x.size:
         _run_elements(params.stiffness_N_per_m, params.limit_N, params.scalars, x, v, out)
     return out

@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from scipy import optimize
@@ -60,11 +61,13 @@ class FreeBasis:
     transition_velocity_m_s: float = 1e-4
     transition_exponent: float = 2.0
 
-    def columns(self, kin: Kinematics, spare: int = 0) -> FloatArray:
+    def columns(
+        self, kin: Kinematics, spare: int = 0, order: Literal["C", "F"] = "C"
+    ) -> FloatArray:
         """phi_i: the force of a unit-limit element with break-away ``breakaway_m[i]``
-        (then ``spare`` columns not set, :func:`~gms_comp.gms.simulate_elements`)."""
+        (then ``spare`` columns not set; ``order``: :func:`~gms_comp.gms.simulate_elements`)."""
         unit = self.gms(np.ones(self.breakaway_m.size))
-        return simulate_elements(unit, kin.position_m, kin.velocity_m_s, spare)
+        return simulate_elements(unit, kin.position_m, kin.velocity_m_s, spare, order)
 
     def gms(self, coefficients: FloatArray, breakaway_m: FloatArray | None = None) -> GmsParams:
         """The GMS whose element i has limit ``coefficients[i]``; an element with zero
