@@ -232,9 +232,10 @@ def _local_shape(scorer: Scorer, trials: Sequence[Trial], presliding_m: float) -
     """The shape of an effect at a few events, from all of them: each of the grid's
     shapes made to agree with its fitted size (:func:`agreed`; from the grid's shape
     nearest agreement), the best by :meth:`~.candidates.Scorer.whole_rms`, then a bounded
-    local search of the keys its size does not set. The grid's sizes are only starts: a
-    dwell gain's size and time constant trade along a ridge, and a grid point off
-    agreement lay off it (tau 0.5 s at a gain of 0.1 for a true 0.06 s and 0.05)."""
+    local search of the keys its size does not set, then :func:`_polish` within the
+    agreement factor. The grid's sizes are only starts: a dwell gain's size and time
+    constant trade along a ridge, and a grid point off agreement lay off it (tau 0.5 s
+    at a gain of 0.1 for a true 0.06 s and 0.05)."""
     m = scorer.theta.size
     effect = trials[0].option.effect
     settled: dict[tuple[tuple[str, float], ...], Trial] = {}
