@@ -320,9 +320,9 @@ def refine_knots(prepared: Prepared, basis: FreeBasis, theta: FloatArray) -> Fre
                 if d != knots[i]
             ]
             values = columns([d for _, d in trials]) if trials else []
-            tried: set[int] = set()
+            moved_knots: set[int] = set()
             for j, (i, d) in enumerate(trials):
-                if i in tried:
+                if i in moved_knots:
                     continue  # moved down: the step up leads back
                 col = [v[:, j] for v in values]
                 replaced = gram.column_replaced(i, col)
@@ -330,7 +330,7 @@ def refine_knots(prepared: Prepared, basis: FreeBasis, theta: FloatArray) -> Fre
                 if trial < best:
                     best, knots[i], moved = trial, d, True
                     gram.replace_column(i, col, replaced)
-                    tried.add(i)
+                    moved_knots.add(i)
             if not moved:
                 break
     order = np.argsort(knots)

@@ -241,7 +241,7 @@ def _local_shape(scorer: Scorer, trials: Sequence[Trial], presliding_m: float) -
     settled: dict[tuple[tuple[str, float], ...], Trial] = {}
 
     def settle(opt: Option) -> Trial:
-        key = tuple(sorted(opt.shape.items()))
+        key = _shape_key(opt)
         if key not in settled:
             first = scorer.score(opt)
             settled[key] = agreed(first, lambda t: t.option, lambda t: t.theta[m:], scorer.score)
@@ -282,7 +282,7 @@ def _polish(
     scored: dict[tuple[tuple[str, float], ...], Trial] = {}
 
     def fitted(opt: Option) -> Trial:
-        key = tuple(sorted(opt.shape.items()))
+        key = _shape_key(opt)
         if key not in scored:
             scored[key] = scorer.score(opt)
         return scored[key]
@@ -293,10 +293,15 @@ def _polish(
     agreeing = [t for t in trials if consistent(scorer, t)]
     if not agreeing:
         return trials[0]
-    start = min(agreeing, key=lambda t: scorer.whole_rms(t.option))
-    scored[tuple(sorted(start.option.shape.items()))] = start
-    opt, _ = local_search(start.option, cost, scorer.whole_rms(start.option), bounds)
+    start_cost, start = min(((scorer.whole_rms(t.option), t) for t in agreeing), key=lambda p: p[0])
+    scored[_shape_key(start.option)] = start
+    opt, _ = local_search(start.option, cost, start_cost, bounds)
     return fitted(opt)
+
+
+def _shape_key(opt: Option) -> tuple[tuple[str, float], ...]:
+    """``opt``'s shape as a hashable key."""
+    return tuple(sorted(opt.shape.items()))
 
 
 def acts_locally(trial: Trial) -> bool:
