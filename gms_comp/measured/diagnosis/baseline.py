@@ -372,6 +372,11 @@ def _baseline(
     )
 
 
+def fitted_on(prepared: Prepared, basis: Basis, info: dict[str, Any]) -> Baseline:
+    """The baseline on ``basis``, its coefficients fitted on ``prepared``'s training rows."""
+    return _baseline(prepared, basis, _fit(prepared, basis)[1], info)
+
+
 def placed_on(prepared: Prepared, fitted: Baseline) -> Baseline:
     """``fitted``'s basis and coefficients (its GMS force in the path context) on
     ``prepared``'s force."""

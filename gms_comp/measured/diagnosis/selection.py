@@ -16,6 +16,7 @@ effect's shape bounds.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TypeVar
@@ -27,6 +28,7 @@ from gms_comp.measured.diagnosis.baseline import Baseline
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, Trial, options
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import rms
+from gms_comp.measured.diagnosis.level_free import FreeLevel, stribeck_with_level
 from gms_comp.runtime import effects as fx
 
 # Relative steps of the local search on shape parameters after the grid, and the most
@@ -191,13 +193,38 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
                 best = _consistent(scorer, min(refined, key=lambda t: t.heldout_rms_N))
             last.append(best)
         kept = [t for t in last if admissible(cfg, scorer, t, level)]
-        if not kept:
+        free = _free_level(cfg, baseline, scorer, kept, level) if fx.Stribeck in pool else None
+        if free is not None:
+            # Stribeck at another slip level: the selection goes on from that level
+            baseline, parts, take = free.baseline, free.baseline.parts, free.trial
+            last = [take if t.option.effect is fx.Stribeck else t for t in last]
+        elif not kept:
             break
-        take = min(kept, key=lambda t: t.heldout_rms_N)
+        else:
+            take = min(kept, key=lambda t: t.heldout_rms_N)
         chosen.append(take.option)
         history.append(take.heldout_rms_N)
         pool.remove(take.option.effect)
     return Selection(baseline, tuple(chosen), tuple(history), tuple(last))
+
+
+def _free_level(
+    cfg: DiagnosisConfig, baseline: Baseline, scorer: Scorer, kept: Sequence[Trial],
+    level_N: float,
+) -> FreeLevel | None:  # fmt: skip
+    """Stribeck with the slip level free (:mod:`.level_free`), its shape refined, if it
+    is admissible on its level and beats the round's best (or the design so far) by the
+    margin."""
+    free = stribeck_with_level(baseline, scorer)
+    if free is None or free.trial.heldout_rms_N >= free.scorer.heldout_rms_N:
+        return None
+    trial = _consistent(free.scorer, _refine(free.scorer, free.trial, free.baseline.presliding_m))
+    best = min([scorer.heldout_rms_N, *(t.heldout_rms_N for t in kept)])
+    if trial.heldout_rms_N > (1.0 - cfg.margin) * best:
+        return None
+    if not admissible(cfg, free.scorer, trial, level_N):
+        return None
+    return dataclasses.replace(free, trial=trial)
 
 
 def _per_value(trials: Sequence[Trial]) -> list[Trial]:
