@@ -205,6 +205,11 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
         if e.get("in_context"):
             figures = ", ".join(parameter_text(k, v) for k, v in e["in_context"].items())
             lines.append(f"        along this trace: {figures}")
+    level = doc.get("extended_slip_level", b["slip_level"])
+    if doc["effects"] and abs(level - b["slip_level"]) > 0.005:
+        lines.append(
+            f"  with the slip level C_v {level:.3g} (the GMS alone: {b['slip_level']:.3g})"
+        )
     for caveat in doc.get("caveats", ()):
         lines.append(f"caveat: {caveat['text']}")
     lines.append(

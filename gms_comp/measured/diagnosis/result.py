@@ -71,6 +71,7 @@ class Diagnosis:
             "parameters": self.ranked[0].effect.parameters() if named else {},
             "baseline_rms_N": self.baseline_rms_N,
             "extended_rms_N": self.extended_rms_N,
+            "extended_slip_level": float(self.gms.slip_level),
             "gain": self.gain,
             "noise_rms_N": self.noise_rms_N,
             "baseline": self.baseline,
