@@ -338,9 +338,10 @@ def refine_knots(prepared: Prepared, basis: FreeBasis, theta: FloatArray) -> Fre
 
 
 def _baseline(
-    prepared: Prepared, basis: Basis, theta: FloatArray, info: dict[str, Any]
-) -> Baseline:
-    designs = _designs(prepared, basis)
+    prepared: Prepared, basis: Basis, theta: FloatArray, info: dict[str, Any],
+    designs: list[tuple[FloatArray, Columns]] | None = None,
+) -> Baseline:  # fmt: skip
+    designs = designs or _designs(prepared, basis)
     n_gms = designs[0][0].shape[1]
     gms = basis.gms(theta[:n_gms])
     parts = []
@@ -374,7 +375,12 @@ def _baseline(
 
 def fitted_on(prepared: Prepared, basis: Basis, info: dict[str, Any]) -> Baseline:
     """The baseline on ``basis``, its coefficients fitted on ``prepared``'s training rows."""
-    return _baseline(prepared, basis, _fit(prepared, basis)[1], info)
+    designs = _designs(prepared, basis)
+    gram = GramDesign([
+        PartDesign(cols, p.force_N, p.train, p.held)
+        for p, (_, cols) in zip(prepared.parts, designs, strict=True)
+    ])  # fmt: skip
+    return _baseline(prepared, basis, gram.fit(), info, designs)
 
 
 def placed_on(prepared: Prepared, fitted: Baseline) -> Baseline:
