@@ -37,6 +37,9 @@ FREE_LEVEL_RATIO = 1.4
 # on a log grid over the baseline's range, the transition's shape the baseline's.
 FREE_LEVEL_STEPS = (0.05, 0.1, 0.15, 0.2, 0.3)
 FREE_TRANSITIONS = 3
+# Searched in the first rounds only (3.5 s a round on pair_drift_offset-124, run in four
+# rounds there): an effect ranked third or later is small, and its level is the refit's.
+FREE_LEVEL_ROUNDS = 2
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,11 @@ from gms_comp.measured.diagnosis.baseline import Baseline
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, Trial, options
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import rms
-from gms_comp.measured.diagnosis.level_free import FreeLevel, stribeck_with_level
+from gms_comp.measured.diagnosis.level_free import (
+    FREE_LEVEL_ROUNDS,
+    FreeLevel,
+    stribeck_with_level,
+)
 from gms_comp.runtime import effects as fx
 
 # Relative steps of the local search on shape parameters after the grid, and the most
@@ -193,7 +197,8 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
                 best = _consistent(scorer, min(refined, key=lambda t: t.heldout_rms_N))
             last.append(best)
         kept = [t for t in last if admissible(cfg, scorer, t, level)]
-        free = _free_level(cfg, baseline, scorer, kept, level) if fx.Stribeck in pool else None
+        searched = fx.Stribeck in pool and len(chosen) < FREE_LEVEL_ROUNDS
+        free = _free_level(cfg, baseline, scorer, kept, level) if searched else None
         if free is not None:
             # Stribeck at another slip level: the selection goes on from that level
             baseline, parts, take = free.baseline, free.baseline.parts, free.trial
