@@ -7,8 +7,9 @@ ratio 1.24 at 6.4 mm/s), the GMS alone fits best with C_v 1, and a Stribeck colu
 that level lowers the held-out RMS by 2.5 % only (0.578 -> 0.564 N; a drift was named).
 With the level at C_v 1.1 it lowers it to 0.295 N. So where the design still leaves
 well above the noise (``FREE_LEVEL_RATIO``), Stribeck is also scored on the baseline
-refitted at each level of a grid (``FREE_LEVELS`` x ``FREE_TRANSITIONS``, about 0.1 s
-each on 170 000 samples); the selection keeps the best if it beats every other trial
+refitted at each level of a grid (``FREE_LEVEL_STEPS`` x ``FREE_TRANSITIONS``, about
+0.2 s each on 170 000 samples), in the first ``FREE_LEVEL_ROUNDS`` rounds of the
+selection; the selection keeps the best if it beats every other trial
 of its round (Stribeck at the baseline's level too) by the margin, and goes on from that
 level (stribeck-111: 0.16 N held out at the baseline's level, a viscous term kept after
 it; 0.09 N at C_v 1.3, nothing after it).
