@@ -199,16 +199,17 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
                 best = _consistent(scorer, min(refined, key=lambda t: t.heldout_rms_N))
             last.append(best)
         kept = [t for t in last if admissible(cfg, scorer, t, level)]
+        take = min(kept, key=lambda t: t.heldout_rms_N) if kept else None
+        # where Stribeck at the baseline's level is taken, the refit searches its level
         searched = fx.Stribeck in pool and len(chosen) < FREE_LEVEL_ROUNDS
-        free = _free_level(cfg, baseline, scorer, kept, level) if searched else None
-        if free is not None:
-            # Stribeck at another slip level: the selection goes on from that level
-            baseline, parts, take = free.baseline, free.baseline.parts, free.trial
-            last = [take if t.option.effect is fx.Stribeck else t for t in last]
-        elif not kept:
+        if searched and (take is None or take.option.effect is not fx.Stribeck):
+            free = _free_level(cfg, baseline, scorer, kept, level)
+            if free is not None:
+                # Stribeck at another slip level: the selection goes on from that level
+                baseline, parts, take = free.baseline, free.baseline.parts, free.trial
+                last = [take if t.option.effect is fx.Stribeck else t for t in last]
+        if take is None:
             break
-        else:
-            take = min(kept, key=lambda t: t.heldout_rms_N)
         chosen.append(take.option)
         history.append(take.heldout_rms_N)
         pool.remove(take.option.effect)
