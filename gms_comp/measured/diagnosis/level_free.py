@@ -41,7 +41,12 @@ FREE_LEVEL_STEPS = (0.05, 0.1, 0.15, 0.2, 0.3)
 FREE_TRANSITIONS = 3
 # Searched in the first rounds only (3.5 s a round on pair_drift_offset-124, run in four
 # rounds there): an effect ranked third or later is small, and its level is the refit's.
-FREE_LEVEL_ROUNDS = 2
+# OFF (0) for now: with 2 it names stribeck-120 and orders offset_stribeck-120, but on
+# position_ripple-117 (a 3.2 N ripple of 7.8 mm on a 28 N level) the level-free Stribeck
+# (C_v 1 -> 1.14, ratio 1.105) won round 1 ahead of the ripple and was named first. The
+# gain a new level brings must not be credited to Stribeck; until that is measured on the
+# whole independent set, the search is off and the selection is as before.
+FREE_LEVEL_ROUNDS = 0
 
 
 @dataclass(frozen=True)
