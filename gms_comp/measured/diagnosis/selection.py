@@ -9,8 +9,9 @@ few samples (a dwell gain at break-aways) is also judged where it acts, at every
 a fit that did not see it (the held-out rows may hold none of its events); and in any case
 it must change the model force somewhere by ``min_effect_fraction`` of the sliding force
 (on clean traces tiny stray terms always lower the held-out error a little). In the
-first rounds Stribeck is also scored with the baseline's slip level free
-(:mod:`.level_free`); where that wins, the selection goes on from that level. Every
+first ``FREE_LEVEL_ROUNDS`` rounds (0 for now: off) Stribeck is also scored with the
+baseline's slip level free (:mod:`.level_free`); where that wins, the selection goes on
+from that level. Every
 search here is bounded: rounds by ``max_effects``, grids by the catalogue, local search
 by ``REFINE_STEPS`` (or an effect's own ``shape_steps``) x ``MAX_PASSES`` inside each
 effect's shape bounds.
