@@ -220,11 +220,6 @@ def test_a_stribeck_fall_is_sized_with_the_level_it_trades_against(
     assert error is not None and error <= TOLERANCE["stribeck"], _describe(gen, outcome)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="level_free.FREE_LEVEL_ROUNDS is 0: the search named a false stribeck first on "
-    "position_ripple-117",
-)
 def test_a_stribeck_fall_above_a_slip_level_is_scored_with_the_level_free(
     trace_dir: Path,
 ) -> None:

@@ -9,10 +9,9 @@ few samples (a dwell gain at break-aways) is also judged where it acts, at every
 a fit that did not see it (the held-out rows may hold none of its events); and in any case
 it must change the model force somewhere by ``min_effect_fraction`` of the sliding force
 (on clean traces tiny stray terms always lower the held-out error a little). In the
-first ``FREE_LEVEL_ROUNDS`` rounds (0 for now: off) Stribeck is also scored with the
-baseline's slip level free (:mod:`.level_free`); where that wins, the selection goes on
-from that level. Every
-search here is bounded: rounds by ``max_effects``, grids by the catalogue, local search
+first ``FREE_LEVEL_ROUNDS`` rounds Stribeck is also scored with the baseline's slip
+level free (:mod:`.level_free`); where that wins, the selection goes on from that level.
+Every search here is bounded: rounds by ``max_effects``, grids by the catalogue, local search
 by ``REFINE_STEPS`` (or an effect's own ``shape_steps``) x ``MAX_PASSES`` inside each
 effect's shape bounds.
 """
@@ -204,7 +203,7 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
         # where Stribeck at the baseline's level is taken, the refit searches its level
         searched = fx.Stribeck in pool and len(chosen) < FREE_LEVEL_ROUNDS
         if searched and (take is None or take.option.effect is not fx.Stribeck):
-            free = _free_level(cfg, baseline, scorer, kept, level)
+            free = _free_level(cfg, baseline, scorer, last, level)
             if free is not None:
                 # Stribeck at another slip level: the selection goes on from that level
                 baseline, parts, take = free.baseline, free.baseline.parts, free.trial
@@ -218,18 +217,26 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
 
 
 def _free_level(
-    cfg: DiagnosisConfig, baseline: Baseline, scorer: Scorer, kept: Sequence[Trial],
+    cfg: DiagnosisConfig, baseline: Baseline, scorer: Scorer, rivals: Sequence[Trial],
     level_N: float,
 ) -> FreeLevel | None:  # fmt: skip
     """Stribeck with the slip level free (:mod:`.level_free`), its shape refined, if it
-    is admissible on its level and beats the round's best (or the design so far) by the
-    margin."""
+    is admissible on its level and beats by the margin the design so far, every other
+    effect's best trial of the round, and both again on the grid's levels: on
+    Stribeck's own and where the design without Stribeck fits best. The gain a level
+    brings alone is not Stribeck's: on position_ripple-117 of the independent generator
+    (no Stribeck), C_v 1 -> 1.1 lowered the held-out RMS in round 2 from 0.502 to
+    0.402 N with Stribeck (ratio 1.1) and to 0.402 N without it; judged against the
+    round's best alone, the Stribeck was kept and, carrying the level, ranked first."""
     free = stribeck_with_level(baseline, scorer)
     if free is None or free.trial.heldout_rms_N >= free.scorer.heldout_rms_N:
         return None
     trial = _consistent(free.scorer, _refine(free.scorer, free.trial, free.baseline.presliding_m))
-    best = min([scorer.heldout_rms_N, *(t.heldout_rms_N for t in kept)])
-    if trial.heldout_rms_N > (1.0 - cfg.margin) * best:
+    others = [t for t in rivals if t.option.effect is not fx.Stribeck]
+    here = [scorer.heldout_rms_N, *(t.heldout_rms_N for t in others)]
+    there = [s.heldout_rms_N for s in (free.scorer, free.plain)]
+    there += [s.score(t.option).heldout_rms_N for s in (free.scorer, free.plain) for t in others]
+    if trial.heldout_rms_N > (1.0 - cfg.margin) * min(here + there):
         return None
     if not admissible(cfg, free.scorer, trial, level_N):
         return None
