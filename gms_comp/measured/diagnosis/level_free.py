@@ -56,24 +56,32 @@ class FreeLevel:
     plain: Scorer
 
 
-def stribeck_with_level(baseline: Baseline, now: Scorer) -> FreeLevel | None:
+def stribeck_with_level(
+    baseline: Baseline, now: Scorer, fitted: dict[tuple[float, float], Baseline] | None = None
+) -> FreeLevel | None:
     """Stribeck's best trial (held-out RMS) on top of the options ``now`` holds, over the
     grid of slip levels; None for a table's baseline, or where ``now`` leaves less than
-    ``FREE_LEVEL_RATIO`` x the noise held out."""
+    ``FREE_LEVEL_RATIO`` x the noise held out. ``fitted``: the baselines fitted so far on
+    the grid's levels, by (C_v, transition velocity), kept across the selection's rounds
+    (one baseline on one level does not depend on the effects chosen; 15 fits a round)."""
     basis = baseline.basis
     if not isinstance(basis, FreeBasis):
         return None
     if now.heldout_rms_N < FREE_LEVEL_RATIO * force_noise(baseline.parts[0].part.force_N):
         return None
     chosen = now.chosen
+    fitted = {} if fitted is None else fitted
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in baseline.prepared.parts)
     best: FreeLevel | None = None
     plain: Scorer | None = None
     for step in FREE_LEVEL_STEPS:
         cv = min(basis.slip_level + step, SLIP_LEVEL_RANGE[1])
         for vt in np.geomspace(*transition_range(vmax), FREE_TRANSITIONS):
-            level = FreeBasis(basis.breakaway_m, cv, float(vt), basis.transition_exponent)
-            rebased = fitted_on(baseline.prepared, level, baseline.info)
+            key = (cv, float(vt))
+            if key not in fitted:
+                level = FreeBasis(basis.breakaway_m, cv, key[1], basis.transition_exponent)
+                fitted[key] = fitted_on(baseline.prepared, level, baseline.info)
+            rebased = fitted[key]
             scorer = Scorer(rebased.parts, chosen)
             if plain is None or scorer.heldout_rms_N < plain.heldout_rms_N:
                 plain = scorer

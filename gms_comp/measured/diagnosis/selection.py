@@ -175,6 +175,7 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
     last: list[Trial] = []
     parts = baseline.parts
     level = baseline.sliding_force_N
+    levels: dict[tuple[float, float], Baseline] = {}  # the level-free grid's, across rounds
     while pool and len(chosen) < cfg.max_effects:
         scorer = Scorer(parts, chosen)
         residual = parts[0].part.force_N - scorer.model()
@@ -203,7 +204,7 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
         # where Stribeck at the baseline's level is taken, the refit searches its level
         searched = fx.Stribeck in pool and len(chosen) < FREE_LEVEL_ROUNDS
         if searched and (take is None or take.option.effect is not fx.Stribeck):
-            free = _free_level(cfg, baseline, scorer, last, level)
+            free = _free_level(cfg, baseline, scorer, last, level, levels)
             if free is not None:
                 # Stribeck at another slip level: the selection goes on from that level
                 baseline, parts, take = free.baseline, free.baseline.parts, free.trial
@@ -218,17 +219,16 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
 
 def _free_level(
     cfg: DiagnosisConfig, baseline: Baseline, scorer: Scorer, rivals: Sequence[Trial],
-    level_N: float,
+    level_N: float, fitted: dict[tuple[float, float], Baseline],
 ) -> FreeLevel | None:  # fmt: skip
-    """Stribeck with the slip level free (:mod:`.level_free`), its shape refined, if it
-    is admissible on its level and beats by the margin the design so far, every other
-    effect's best trial of the round, and both again on the grid's levels: on
-    Stribeck's own and where the design without Stribeck fits best. The gain a level
-    brings alone is not Stribeck's: on position_ripple-117 of the independent generator
-    (no Stribeck), C_v 1 -> 1.1 lowered the held-out RMS in round 2 from 0.502 to
-    0.402 N with Stribeck (ratio 1.1) and to 0.402 N without it; judged against the
-    round's best alone, the Stribeck was kept and, carrying the level, ranked first."""
-    free = stribeck_with_level(baseline, scorer)
+    """Stribeck with the slip level free (:mod:`.level_free`), shape refined, if it is
+    admissible on its level and beats by the margin the design so far and every other
+    effect's best trial of the round, both also on Stribeck's level and where the design
+    without Stribeck fits best on the grid. A level's gain alone is not Stribeck's: on
+    position_ripple-117 of the independent generator (no Stribeck), round 2 went from
+    0.502 N held out to 0.402 N at C_v 1.1 with Stribeck and to 0.402 N without; judged
+    against the round's best only, Stribeck was kept and, carrying the level, ranked first."""
+    free = stribeck_with_level(baseline, scorer, fitted)
     if free is None or free.trial.heldout_rms_N >= free.scorer.heldout_rms_N:
         return None
     trial = _consistent(free.scorer, _refine(free.scorer, free.trial, free.baseline.presliding_m))
