@@ -43,15 +43,13 @@ REFINE_STEPS = (1.3, 1.08)
 MAX_PASSES = 4
 # Fixed-point steps that make a shape agree with the size fitted on it, and how far
 # apart the two may be for the effect to be kept (a factor). Each step goes halfway (in
-# log) to the shape the size implies: a dwell's fitted gain falls as the gain its
-# windows are computed at rises (slope -0.8 in log near the agreement on one trace), so
-# full steps oscillate about it (three left a factor 1.4); half steps converge in two.
-# Where it does not fall smoothly (a raised element that holds through a presliding run
-# at one gain and slips at a slightly larger one: on dwell_time-117 of the independent
-# generator, fitted 0.060 at 0.10 and 0.014 at 0.11), half steps jumped across the
-# agreement four times without reaching it. Once the steps have gone both ways, each
-# next one bisects (in log) between the nearest gains seen on either side, and the fit
-# that agrees best is returned.
+# log) to the shape the size implies: a dwell's fitted gain falls as its windows' gain
+# rises (slope -0.8 in log near agreement), so full steps oscillate about it (three
+# left a factor 1.4); half steps converge in two. Where it does not fall smoothly (an
+# element that holds through a presliding run at one gain and slips at a slightly larger
+# one: dwell_time-117 of the independent generator, fitted 0.060 at 0.10 and 0.014 at
+# 0.11), half steps jumped across it four times; once the steps have gone both ways,
+# each bisects (in log) between the nearest gains on either side; the best fit returns.
 CONSISTENCY_STEPS = 8
 CONSISTENCY_CONVERGED = 1.1
 CONSISTENT_WITHIN = 1.5
@@ -63,11 +61,9 @@ LOCAL_SHARE = 0.25
 LOCAL_STARTS = 3
 # Shape keys the local search does not step (integers: a filter's order). Where the grid's
 # best lowers the held-out RMS by the margin, the best grid trial of each value within
-# DISCRETE_WITHIN of it is refined: a grid a factor 1.6 apart in cut-off picked a
-# filter's order by which grid point fell nearer its delay (12 of 30 independent traces
-# one order off, the cut-off then 17-56 % off); refined, each order's own cut-off
-# decides (seeds 122, 128: order 3 at 0.731/0.396 N held-out against order 4 at
-# 0.739/0.442).
+# DISCRETE_WITHIN of it is refined: a grid 1.6x apart in cut-off picked a filter's order
+# by which grid point fell nearer its delay (12 of 30 independent traces one order off,
+# the cut-off 17-56 % off); refined, each order's cut-off decides (seeds 122, 128).
 DISCRETE = ("order",)
 DISCRETE_WITHIN = 1.25
 
@@ -77,13 +73,15 @@ Progress = Callable[[str], None]
 @dataclass(frozen=True)
 class Selection:
     """The output of :func:`select`: the kept options in the order taken, the held-out
-    RMS after each, and the best trial of every effect in the last round (for the
-    report: what was tried and not kept)."""
+    RMS after each, the best trial of every effect in the last round (for the report:
+    what was tried and not kept), and the baseline before a Stribeck kept with the
+    slip level free moved it (None if none did)."""
 
     baseline: Baseline
     chosen: tuple[Option, ...]
     heldout_rms_N: tuple[float, ...]
     last_round: tuple[Trial, ...]
+    level_from: Baseline | None = None
 
 
 def local_search(
@@ -176,6 +174,7 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
     parts = baseline.parts
     level = baseline.sliding_force_N
     levels: dict[tuple[float, float], Baseline] = {}  # the level-free grid's, across rounds
+    level_from: Baseline | None = None
     while pool and len(chosen) < cfg.max_effects:
         scorer = Scorer(parts, chosen)
         residual = parts[0].part.force_N - scorer.model()
@@ -207,6 +206,7 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
             free = _free_level(cfg, baseline, scorer, last, level, levels)
             if free is not None:
                 # Stribeck at another slip level: the selection goes on from that level
+                level_from = level_from or baseline
                 baseline, parts, take = free.baseline, free.baseline.parts, free.trial
                 last = [take if t.option.effect is fx.Stribeck else t for t in last]
         if take is None:
@@ -214,7 +214,7 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
         chosen.append(take.option)
         history.append(take.heldout_rms_N)
         pool.remove(take.option.effect)
-    return Selection(baseline, tuple(chosen), tuple(history), tuple(last))
+    return Selection(baseline, tuple(chosen), tuple(history), tuple(last), level_from)
 
 
 def _free_level(
