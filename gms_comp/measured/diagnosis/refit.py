@@ -36,12 +36,12 @@ from gms_comp.measured.diagnosis.basis import FreeBasis
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, design, effect_of, widths
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
+from gms_comp.measured.diagnosis.gain import lowers
 from gms_comp.measured.diagnosis.selection import (
     Selection,
     admissible,
     agreed,
     local_search,
-    significance,
 )
 from gms_comp.measured.diagnosis.slip_level import SLIP_LEVEL_RANGE, transition_range
 from gms_comp.runtime import effects as fx
@@ -123,12 +123,7 @@ def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
                   selection.last_round),
         cfg,
     )  # fmt: skip
-    rms0, rms1 = without.heldout_rms_N, extended.heldout_rms_N
-    kept = rms1 <= (1.0 - cfg.margin) * rms0 or (
-        rms1 <= (1.0 - cfg.small_margin) * rms0
-        and significance(without.held_residual_N, extended.held_residual_N) >= cfg.significance_t
-    )
-    return extended if kept else without
+    return extended if lowers(cfg, without.held_residual_N, extended.held_residual_N) else without
 
 
 def refit_kept(selection: Selection, cfg: DiagnosisConfig) -> Extended:

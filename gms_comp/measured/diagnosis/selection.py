@@ -30,6 +30,7 @@ from gms_comp.measured.diagnosis.baseline import Baseline
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, Trial, options
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import rms
+from gms_comp.measured.diagnosis.gain import lowers, significance
 from gms_comp.measured.diagnosis.level_free import (
     FREE_LEVEL_ROUNDS,
     FreeLevel,
@@ -53,8 +54,6 @@ MAX_PASSES = 4
 CONSISTENCY_STEPS = 8
 CONSISTENCY_CONVERGED = 1.1
 CONSISTENT_WITHIN = 1.5
-# Contiguous chunks of held-out samples for the significance of an improvement.
-SIGNIFICANCE_CHUNKS = 50
 # An effect acting on less than this share of the held-out samples is judged there; its
 # shape is searched from the LOCAL_STARTS best of its grid (:func:`_local_shape`).
 LOCAL_SHARE = 0.25
@@ -114,35 +113,13 @@ def local_search(
     return best, best_cost
 
 
-def significance(current: FloatArray, new: FloatArray) -> float:
-    """z statistic of the drop in squared residual, its spread from contiguous chunks.
-
-    With ``d = current - new`` (what the trial changes), the drop is
-    ``sum(current**2 - new**2) = sum(2 new d + d**2)``; where the trial is right, ``new``
-    is the noise and the drop's chance part is ``2 sum(new d)``, whose spread is taken
-    over contiguous chunks (residuals are correlated in time, chunks much less so). Unlike
-    a t test of the chunks' gains, this does not cap an effect that acts in a few chunks
-    only (fast moves, break-aways) at the square root of their number."""
-    n = min(SIGNIFICANCE_CHUNKS, current.size // 2)
-    if n < 2:
-        return 0.0
-    change = current - new
-    drop = float(np.sum(current**2 - new**2))
-    cross = np.array([np.sum(c) for c in np.array_split(new * change, n)])
-    spread = 2.0 * float(np.sqrt(np.sum(cross**2)))
-    return drop / spread if spread > 0 else (np.inf if drop > 0 else 0.0)
-
-
 def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: float) -> bool:
     """Whether ``trial`` is worth an effect (see the module docstring)."""
     rms0, held0 = scorer.heldout_rms_N, scorer.held_residual_N
     local = acts_locally(trial)
     if trial.heldout_rms_N >= rms0 and not local:
         return False
-    worth = trial.heldout_rms_N <= (1.0 - cfg.margin) * rms0 or (
-        trial.heldout_rms_N <= (1.0 - cfg.small_margin) * rms0
-        and significance(held0, trial.held_residual_N) >= cfg.significance_t
-    )
+    worth = lowers(cfg, held0, trial.held_residual_N)
     if not worth and local:
         # judged where it acts, at every event by a fit without it: an effect at a few
         # events may have none or one held out (and the held-out RMS not lowered)
@@ -234,8 +211,9 @@ def _free_level(
     trial = _consistent(free.scorer, _refine(free.scorer, free.trial, free.baseline.presliding_m))
     others = [t for t in rivals if t.option.effect is not fx.Stribeck]
     here = [scorer.heldout_rms_N, *(t.heldout_rms_N for t in others)]
-    there = [s.heldout_rms_N for s in (free.scorer, free.plain)]
-    there += [s.score(t.option).heldout_rms_N for s in (free.scorer, free.plain) for t in others]
+    levels = [free.scorer] if free.plain is free.scorer else [free.scorer, free.plain]
+    there = [s.heldout_rms_N for s in levels]
+    there += [s.score(t.option).heldout_rms_N for s in levels for t in others]
     if trial.heldout_rms_N > (1.0 - cfg.margin) * min(here + there):
         return None
     if not admissible(cfg, free.scorer, trial, level_N):
