@@ -274,6 +274,30 @@ class Scorer:
         return base @ trial.theta[:m] + extra @ trial.theta[m:] - self.model()
 
 
+def base_gram(parts: Sequence[FittedPart]) -> GramDesign:
+    """The training Gram matrix of the parts' base columns alone (the GMS's: the same
+    while the parts' GMS force is refitted)."""
+    return GramDesign(
+        [PartDesign(fp.base, fp.part.force_N, fp.part.train, fp.part.held) for fp in parts]
+    )
+
+
+def fit_on(
+    base: GramDesign, parts: Sequence[FittedPart], chosen: Sequence[Option]
+) -> tuple[FloatArray, float]:
+    """Coefficients and training RMS of the design of ``chosen`` on ``parts``, whose
+    base columns ``base`` holds (:func:`base_gram`): the options' columns added to its
+    Gram matrix, not the whole design's built again (a filtered design is)."""
+    if any(o.is_filter for o in chosen):
+        gram = GramDesign(design(parts, chosen))
+        theta = gram.fit()
+        return theta, gram.train_rms(theta)
+    if not chosen:
+        theta = base.fit()
+        return theta, base.train_rms(theta)
+    return base.trial_train_rms([Columns.join([o.columns(fp) for o in chosen]) for fp in parts])
+
+
 def _runs(mask: BoolArray, gap: int) -> list[IntArray]:
     """The rows of ``mask``'s runs, runs less than ``gap`` rows apart merged."""
     rows = np.flatnonzero(mask)

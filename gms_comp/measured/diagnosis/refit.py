@@ -33,7 +33,15 @@ from gms_comp.measured.diagnosis.baseline import (
     refit_gms_force,
 )
 from gms_comp.measured.diagnosis.basis import FreeBasis
-from gms_comp.measured.diagnosis.candidates import Option, Scorer, design, effect_of, widths
+from gms_comp.measured.diagnosis.candidates import (
+    Option,
+    Scorer,
+    base_gram,
+    design,
+    effect_of,
+    fit_on,
+    widths,
+)
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
 from gms_comp.measured.diagnosis.gain import lowers
@@ -183,10 +191,11 @@ def _joint_refits(
 ) -> tuple[tuple[FittedPart, ...], list[Option], FloatArray]:  # fmt: skip
     """``JOINT_REFITS`` times: the GMS force updated to the joint fit ``theta``, the
     shapes of ``REFIT_SHAPES`` searched again, everything fitted again."""
+    base = base_gram(parts)  # the GMS columns stay; their force is refitted
     for _ in range(JOINT_REFITS if chosen else 0):
         parts = refit_gms_force(parts, theta, basis)
         chosen = _refine_shapes(parts, chosen, presliding_m)
-        theta = GramDesign(design(parts, chosen)).fit()
+        theta = fit_on(base, parts, chosen)[0]
     return parts, chosen, theta
 
 
@@ -220,13 +229,12 @@ def _level_with_shape(
     def cost(u: FloatArray) -> float:
         level, options = unpack(u)
         parts = rebased(baseline, level)
-        gram = GramDesign(design(parts, options))
-        theta = gram.fit()
+        base = base_gram(parts)
+        theta, train_rms = fit_on(base, parts, options)
         for _ in range(JOINT_REFITS):
             parts = refit_gms_force(parts, theta, level)
-            gram = GramDesign(design(parts, options))
-            theta = gram.fit()
-        return gram.train_rms(theta)
+            theta, train_rms = fit_on(base, parts, options)
+        return train_rms
 
     u0 = np.array([
         basis.slip_level, np.log(basis.transition_velocity_m_s),
