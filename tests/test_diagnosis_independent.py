@@ -243,6 +243,18 @@ def test_a_stribeck_that_only_moves_the_slip_level_is_not_kept(trace_dir: Path) 
     assert error is not None and error <= 0.05, _describe(gen, outcome)
 
 
+def test_a_stribeck_kept_after_another_effect_is_judged_by_the_refit_without_it(
+    trace_dir: Path,
+) -> None:
+    # drift-120 (no Stribeck): a Stribeck at the baseline's level was kept second after
+    # the drift; refitted without it, the drift alone leaves 0.16598 N held out against
+    # 0.16572 N with it, far short of the keep rule's margin
+    gen, outcome = diagnosed("drift", 120, trace_dir)
+    assert outcome.ranked == ["drift"], _describe(gen, outcome)
+    error = main_parameter_error(gen, outcome)
+    assert error is not None and error <= 0.05, _describe(gen, outcome)
+
+
 def test_a_drift_is_sized_with_the_level_it_trades_against(trace_dir: Path) -> None:
     # 109 (kappa 0.278 over 9.96 s, C_v 1.23): the blind baseline's level was placed on the
     # growing force (C_v 1.37), and the refits stopped at 0.199 over 5.5 s (0.28 off);

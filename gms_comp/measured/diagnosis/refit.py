@@ -117,11 +117,16 @@ def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
     further than the selection's grid: on drift-122 of the independent generator (no
     Stribeck), a Stribeck at C_v 1.395 beat the drift's design on the grid's levels
     (0.683 against 0.734 N held out) and was kept second; refitted, 0.6483 N with it
-    against 0.6455 N without."""
+    against 0.6455 N without. A Stribeck kept after another effect at the baseline's
+    level is judged the same way: it may carry what the level and the first effect's
+    shape, searched together in the refit, carry better (six traces of the independent
+    seeds 111-130 without a Stribeck, drift-114/-120 among them, kept one second or
+    third; none of them does now, and pair_offset_stribeck-121/-123 keep theirs)."""
     extended = refit_kept(selection, cfg)
-    start = selection.level_from
-    if start is None:
+    later = fx.Stribeck in [o.effect for o in selection.chosen[1:]]
+    if selection.level_from is None and not later:
         return extended
+    start = selection.level_from or selection.baseline
     rest = [
         (o, h) for o, h in zip(selection.chosen, selection.heldout_rms_N, strict=True)
         if o.effect is not fx.Stribeck
