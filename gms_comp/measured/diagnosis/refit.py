@@ -196,7 +196,8 @@ def _joint_refits(
 ) -> tuple[tuple[FittedPart, ...], list[Option], FloatArray]:  # fmt: skip
     """``JOINT_REFITS`` times: the GMS force updated to the joint fit ``theta``, the
     shapes of ``REFIT_SHAPES`` searched again, everything fitted again."""
-    base = base_gram(parts)  # the GMS columns stay; their force is refitted
+    # the GMS columns stay (their force is refitted), and so do the filters
+    base = base_gram(parts, [o for o in chosen if o.is_filter])
     for _ in range(JOINT_REFITS if chosen else 0):
         parts = refit_gms_force(parts, theta, basis)
         chosen = _refine_shapes(parts, chosen, presliding_m)
@@ -234,7 +235,7 @@ def _level_with_shape(
     def cost(u: FloatArray) -> float:
         level, options = unpack(u)
         parts = rebased(baseline, level)
-        base = base_gram(parts)
+        base = base_gram(parts, [o for o in options if o.is_filter])
         theta, train_rms = fit_on(base, parts, options)
         for _ in range(JOINT_REFITS):
             parts = refit_gms_force(parts, theta, level)
