@@ -48,10 +48,6 @@ EVENT_GAP_S = 0.02
 LEFT_OUT_FOLDS = 10
 # The columns of this many options are kept by a Scorer (one round of the selection).
 COLUMNS_KEPT = 32
-# A filter's grid (a sensor low-pass: 14 cut-offs x 4 orders, a full filter trial 36 ms
-# on a 175 000-sample trace) is screened first by the current model seen through each
-# filter (one filtered column each); the SCREENED best of each order are scored.
-SCREENED = 3
 
 
 @dataclass(frozen=True)
@@ -150,7 +146,7 @@ class Scorer:
 
     def model(self, index: int = 0) -> FloatArray:
         """The current design's force on part ``index``."""
-        return self._models[index]
+        return self.designs[index].columns.values @ self.theta
 
     def score(self, opt: Option) -> Trial:
         """``opt`` added to the chosen options, fitted on training, scored held out."""
@@ -165,37 +161,6 @@ class Scorer:
             return np.concatenate([where_acting(e.values[fp.part.held]) for e, fp in pairs])
 
         return Trial(opt, rms(held), theta, held, support)
-
-    def screened(self, opts: Sequence[Option]) -> list[Option]:
-        """The filter ``opts`` worth a full trial: of each value of the ``order`` key
-        (or all, for a filter without one), the ``SCREENED`` whose filter brings the
-        current model nearest the force on every row, its coefficients unchanged. A
-        filter is linear, so that is the model of the filtered design at the current
-        coefficients: the trial's fit starts from it. Additive options pass as they are."""
-        if not opts or not opts[0].is_filter:
-            return list(opts)
-        proxy = {id(o): self._through(o) for o in opts}
-        groups: dict[float, list[Option]] = {}
-        for o in opts:
-            groups.setdefault(o.shape.get("order", 0.0), []).append(o)
-        keep = {
-            id(o) for group in groups.values()
-            for o in sorted(group, key=lambda o: proxy[id(o)])[:SCREENED]
-        }  # fmt: skip
-        return [o for o in opts if id(o) in keep]
-
-    def _through(self, opt: Option) -> float:
-        """The RMS over every row of the force less the current model seen through the
-        filter ``opt``."""
-        residuals = []
-        for i, fp in enumerate(self.parts):
-            model = opt.filter_effect().filter_columns(self.model(i), fp.ctx.sample_time_s)
-            residuals.append(fp.part.force_N - model)
-        return rms(np.concatenate(residuals))
-
-    @functools.cached_property
-    def _models(self) -> list[FloatArray]:
-        return [d.columns.values @ self.theta for d in self.designs]
 
     @functools.cached_property
     def _rows(self) -> list[FloatArray]:

@@ -159,8 +159,8 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
         for i, effect in enumerate(pool):
             if progress:
                 progress(f"round {len(chosen) + 1}: {effect.name} ({i + 1}/{len(pool)})")
-            grid = options(effect, parts[0], residual, baseline.presliding_m)
-            trials = [scorer.score(o) for o in scorer.screened(grid)]
+            trials = [scorer.score(o) for o in options(effect, parts[0], residual,
+                                                      baseline.presliding_m)]  # fmt: skip
             if not trials:
                 continue
             best = min(trials, key=lambda t: t.heldout_rms_N)
