@@ -247,10 +247,11 @@ class Scorer:
         return base @ trial.theta[:m] + extra @ trial.theta[m:] - self.model()
 
 
-def base_gram(parts: Sequence[FittedPart], filters: Sequence[Option] = ()) -> GramDesign:
+def base_gram(parts: Sequence[FittedPart], chosen: Sequence[Option] = ()) -> GramDesign:
     """The training Gram matrix of the parts' base columns alone (the GMS's: the same
-    while the parts' GMS force is refitted), through the chosen ``filters``."""
-    return GramDesign(design(parts, filters))
+    while the parts' GMS force is refitted), through ``chosen``'s filters (for
+    :func:`fit_on` with the same filters)."""
+    return GramDesign(design(parts, [o for o in chosen if o.is_filter]))
 
 
 def fit_on(

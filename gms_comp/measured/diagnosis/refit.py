@@ -197,7 +197,7 @@ def _joint_refits(
     """``JOINT_REFITS`` times: the GMS force updated to the joint fit ``theta``, the
     shapes of ``REFIT_SHAPES`` searched again, everything fitted again."""
     # the GMS columns stay (their force is refitted), and so do the filters
-    base = base_gram(parts, [o for o in chosen if o.is_filter])
+    base = base_gram(parts, chosen)
     for _ in range(JOINT_REFITS if chosen else 0):
         parts = refit_gms_force(parts, theta, basis)
         chosen = _refine_shapes(parts, chosen, presliding_m)
@@ -235,7 +235,7 @@ def _level_with_shape(
     def cost(u: FloatArray) -> float:
         level, options = unpack(u)
         parts = rebased(baseline, level)
-        base = base_gram(parts, [o for o in options if o.is_filter])
+        base = base_gram(parts, options)
         theta, train_rms = fit_on(base, parts, options)
         for _ in range(JOINT_REFITS):
             parts = refit_gms_force(parts, theta, level)
