@@ -196,6 +196,30 @@ def test_ctrl_c_is_one_line_and_exit_130(delay_s: float, after: str | None) -> N
     assert all(line.startswith("measuring") for line in lines[:-1]), lines
 
 
+def test_ctrl_c_inside_a_constructor_leaves_no_finalizer_traceback() -> None:
+    """Ctrl-C inside a constructor (llvmlite's, while numba compiles) leaves a half-built
+    object whose ``__del__`` fails when it is collected: still one line, no traceback."""
+    code = """
+import sys
+import gms_comp.app.commands.model as model
+from gms_comp.app.cli import main
+class HalfBuilt:
+    def __init__(self) -> None:
+        raise KeyboardInterrupt  # before the attribute __del__ needs is set
+    def __del__(self) -> None:
+        self.handle.close()
+def run(args):
+    HalfBuilt()
+model.run = run
+sys.exit(main(["model"]))
+"""
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120
+    )
+    assert result.returncode == 130, result.stderr
+    assert result.stderr == "gms-comp model: interrupted\n"
+
+
 def test_closed_stdout_is_quiet() -> None:
     """``gms-comp ... | head``: the reader going away is no traceback."""
     proc = subprocess.Popen(

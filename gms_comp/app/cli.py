@@ -87,12 +87,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{command}: error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
+        quiet_finalizers()
         print(f"{command}: interrupted", file=sys.stderr)
         return INTERRUPTED
     except BrokenPipeError:  # the reader of stdout went away (`gms-comp ... | head`)
         _silence_stdout()
         return 1
     return code
+
+
+def quiet_finalizers() -> None:
+    """Drop the errors of finalizers from now on: Ctrl-C can land inside a constructor
+    (llvmlite's, while numba compiles), and the half-built object's ``__del__`` then fails
+    when it is collected, which Python reports as an "Exception ignored" traceback."""
+    sys.unraisablehook = lambda _unraisable: None
 
 
 def _silence_stdout() -> None:
