@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy import optimize
 
+from gms_comp.measured.diagnosis import design
 from gms_comp.measured.diagnosis.design import Columns, GramDesign, PartDesign
 
 
@@ -39,6 +41,43 @@ def test_trial_matches_a_bounded_least_squares_of_the_whole_design() -> None:
         assert np.allclose(held, p.force_N[p.held] - full[p.held] @ expected, atol=1e-8)
         residual = p.force_N[p.train] - full[p.train] @ expected
         assert abs(train_rms - np.sqrt(np.mean(residual**2))) < 1e-9
+
+
+def test_trials_in_batches_are_the_trials_one_by_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    # two parts, extras of one to three columns, split over several batches
+    rng = np.random.default_rng(11)
+    parts: list[PartDesign] = []
+    extras: list[list[Columns]] = [[] for _ in range(7)]
+    for n in (2500, 1700):
+        p = _problem(int(rng.integers(100)))[0][0]
+        cut = PartDesign(
+            Columns(p.columns.values[:n], p.columns.lower), p.force_N[:n], p.train[:n],
+            p.held[:n],
+        )  # fmt: skip
+        parts.append(cut)
+        for k, extra in enumerate(extras):
+            q = 1 + k % 3
+            extra.append(
+                Columns(rng.normal(size=(n, q)), np.where(np.arange(q) == 0, 0.0, -np.inf))
+            )
+    gram = GramDesign(parts)
+    monkeypatch.setattr(design, "BATCH_COLUMNS", 4)
+    batched = gram.trials(extras)
+    for extra, (theta, held) in zip(extras, batched, strict=True):
+        full = [
+            np.column_stack([p.columns.values, e.values]) for p, e in zip(parts, extra, strict=True)
+        ]
+        train = np.vstack([f[p.train] for f, p in zip(full, parts, strict=True)])
+        lower = np.concatenate([parts[0].columns.lower, extra[0].lower])
+        y = np.concatenate([p.force_N[p.train] for p in parts])
+        expected = optimize.lsq_linear(train, y, bounds=(lower, np.full(lower.size, np.inf))).x
+        assert np.allclose(theta, expected, atol=1e-8)
+        one = gram.trial(extra)
+        assert np.allclose(theta, one[0], rtol=1e-12, atol=1e-12)
+        assert np.allclose(held, one[1], rtol=1e-12, atol=1e-12)
+        held_rows = np.concatenate([f[p.held] for f, p in zip(full, parts, strict=True)])
+        y_held = np.concatenate([p.force_N[p.held] for p in parts])
+        assert np.allclose(held, y_held - held_rows @ expected, atol=1e-8)
 
 
 def test_a_replaced_column_equals_the_design_built_with_it() -> None:

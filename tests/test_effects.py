@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy import signal
 
 from gms_comp.gms import GmsParams, simulate
 from gms_comp.measured.diagnosis.candidates import Option
@@ -281,6 +282,23 @@ def test_sensor_lowpass_keeps_dc_and_lags() -> None:
     y = fx.SensorLowpass(10.0, 2).apply(ctx, step)
     assert y[-1] == pytest.approx(1.0, abs=1e-6)
     assert y[1010] < 0.5  # a 10 Hz filter has not risen 10 ms after the step
+
+
+@pytest.mark.parametrize(
+    "effect",
+    [fx.SensorLowpass(3.0, 1), fx.SensorLowpass(40.0, 2), fx.SensorLowpass(7.0, 3),
+     fx.SensorLowpass(0.8, 4), fx.DriveLag(3e-4)],
+)  # fmt: skip
+def test_a_filter_of_many_columns_is_scipys_lfilter_of_each(effect: fx.FilterEffect) -> None:
+    # the columns stepped together give scipy's numbers exactly (the same operations)
+    rng = np.random.default_rng(3)
+    x = np.cumsum(rng.normal(size=(4000, 7)), axis=0)
+    b, a = effect.filter(1e-3)
+    zi = signal.lfilter_zi(b, a)
+    expected = signal.lfilter(b, a, x, axis=0, zi=np.multiply.outer(zi, x[0]))[0]
+    assert np.array_equal(effect.filter_columns(x, 1e-3), expected)
+    assert np.array_equal(effect.filter_columns(np.asfortranarray(x), 1e-3), expected)
+    assert np.array_equal(effect.filter_columns(x[:, 2], 1e-3), expected[:, 2])
 
 
 def test_dict_round_trip_and_bad_entries() -> None:

@@ -86,11 +86,6 @@ class FittedPart:
     ctx: fx.Context  # path quantities, the GMS force the baseline's
 
     @functools.cached_property
-    def base_rows(self) -> FloatArray:
-        """The base columns as contiguous rows (what a filter runs along), made once."""
-        return np.ascontiguousarray(self.base.values.T)
-
-    @functools.cached_property
     def _bases(self) -> dict[tuple[object, ...], FloatArray]:
         return {}
 

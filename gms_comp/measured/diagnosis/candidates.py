@@ -17,6 +17,7 @@ import numpy as np
 
 from gms_comp.measured.diagnosis.baseline import FittedPart
 from gms_comp.measured.diagnosis.design import (
+    BATCH_COLUMNS,
     BoolArray,
     Columns,
     FloatArray,
@@ -92,11 +93,9 @@ def design(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> list[PartDe
     out = []
     for fp in parts:
         cols = fp.base
-        if filters:
-            rows = fp.base_rows
-            for f in filters:
-                rows = f.filter_effect().filter_rows(rows, fp.ctx.sample_time_s)
-            cols = Columns(rows.T, cols.lower)
+        for f in filters:
+            values = f.filter_effect().filter_columns(cols.values, fp.ctx.sample_time_s)
+            cols = Columns(values, cols.lower)
         additive = [opt.columns(fp, filters) for opt in chosen if not opt.is_filter]
         cols = Columns.join([cols, *additive])
         out.append(PartDesign(cols, fp.part.force_N, fp.part.train, fp.part.held))
@@ -150,57 +149,72 @@ class Scorer:
 
     def score(self, opt: Option) -> Trial:
         """``opt`` added to the chosen options, fitted on training, scored held out."""
-        if opt.is_filter:
-            theta, held = self._filter_trial(opt)
-            return Trial(opt, rms(held), theta, held, lambda: self._all_held)
-        extra = self.extra(opt)
-        theta, held = self.gram.trial(extra)
+        return self.score_all([opt])[0]
 
-        def support() -> BoolArray:
-            pairs = zip(extra, self.parts, strict=True)
-            return np.concatenate([where_acting(e.values[fp.part.held]) for e, fp in pairs])
-
-        return Trial(opt, rms(held), theta, held, support)
-
-    @functools.cached_property
-    def _rows(self) -> list[FloatArray]:
-        """Each part's design before the chosen filters, as contiguous rows (one row per
-        column: what a filter runs along), made once for the filter trials."""
+    def score_all(self, opts: Sequence[Option]) -> list[Trial]:
+        """:meth:`score` of each of ``opts``, the additive ones in one batch
+        (:meth:`~.design.GramDesign.trials`)."""
+        scored: dict[int, tuple[list[Columns], tuple[FloatArray, FloatArray]]] = {}
+        batch: list[tuple[Option, list[Columns]]] = []
+        additive = [o for o in opts if not o.is_filter]
+        for i, opt in enumerate(additive):
+            # a batch's columns at a time (a grid's all at once: 300 MB)
+            batch.append((opt, self.extra(opt)))
+            if sum(e[0].lower.size for _, e in batch) >= BATCH_COLUMNS or i + 1 == len(additive):
+                results = self.gram.trials([e for _, e in batch])
+                scored |= {id(o): (e, r) for (o, e), r in zip(batch, results, strict=True)}
+                batch = []
         out = []
-        for fp in self.parts:
-            blocks = [fp.base_rows] + [
-                fp.effect_basis(o.effect, o.shape).T for o in self.chosen if not o.is_filter
-            ]
-            out.append(np.ascontiguousarray(np.vstack(blocks)))
+        for opt in opts:
+            if opt.is_filter:
+                theta, held = self._filter_trial(opt)
+                out.append(Trial(opt, rms(held), theta, held, lambda: self._all_held))
+                continue
+            extra, (theta, held) = scored[id(opt)]
+
+            def support(extra: list[Columns] = extra) -> BoolArray:
+                pairs = zip(extra, self.parts, strict=True)
+                return np.concatenate([where_acting(e.values[fp.part.held]) for e, fp in pairs])
+
+            out.append(Trial(opt, rms(held), theta, held, support))
         return out
 
+    @functools.cached_property
+    def _unfiltered(self) -> list[FloatArray]:
+        """Each part's design before the chosen filters (made once for the filter
+        trials)."""
+        return [
+            Columns.join([fp.base] + [o.columns(fp) for o in self.chosen if not o.is_filter]).values
+            for fp in self.parts
+        ]
+
     def _filtered(self, opt: Option, index: int) -> FloatArray:
-        """Part ``index``'s design rows through the chosen filters and the filter ``opt``
+        """Part ``index``'s design through the chosen filters and the filter ``opt``
         (each filter is linear and acts on every column alike: the design of
-        :func:`design` with ``opt`` chosen last, transposed)."""
-        rows, dt = self._rows[index], self.parts[index].ctx.sample_time_s
+        :func:`design` with ``opt`` chosen last)."""
+        values, dt = self._unfiltered[index], self.parts[index].ctx.sample_time_s
         for f in [*self.filters, opt]:
-            rows = f.filter_effect().filter_rows(rows, dt)
-        return rows
+            values = f.filter_effect().filter_columns(values, dt)
+        return values
 
     def _filter_trial(self, opt: Option) -> tuple[FloatArray, FloatArray]:
         """Coefficients and held-out residual of the design with the filter ``opt`` added,
-        fitted on the training rows. The Gram matrix is built from the filtered rows as
-        they come (a filter trial through :func:`design` and :class:`~.design.GramDesign`
-        transposed the filtered design back to columns and gathered its rows: 505 such
-        trials were 9 of 37 s on stribeck-111 of the independent generator)."""
+        fitted on the training rows. The Gram matrix is built from the filtered design
+        as it comes (through :class:`~.design.GramDesign`, each trial copied the design
+        once more: 505 such trials were 9 of 37 s on stribeck-111 of the independent
+        generator)."""
         m = self.gram.lower.size
         gram, rhs = np.zeros((m, m)), np.zeros(m)
-        held_rows, held_y = [], []
+        held_a, held_y = [], []
         for i, fp in enumerate(self.parts):
-            rows = self._filtered(opt, i)
-            train = np.take(rows, np.flatnonzero(fp.part.train), axis=1)
-            gram += train @ train.T
-            rhs += train @ fp.part.force_N[fp.part.train]
-            held_rows.append(np.take(rows, np.flatnonzero(fp.part.held), axis=1))
+            values = self._filtered(opt, i)
+            train = np.take(values, np.flatnonzero(fp.part.train), axis=0)
+            gram += train.T @ train
+            rhs += fp.part.force_N[fp.part.train] @ train
+            held_a.append(np.take(values, np.flatnonzero(fp.part.held), axis=0))
             held_y.append(fp.part.force_N[fp.part.held])
         theta = solve_gram(gram, rhs, self.gram.lower)
-        held = np.concatenate(held_y) - np.concatenate([theta @ r for r in held_rows])
+        held = np.concatenate(held_y) - np.concatenate([a @ theta for a in held_a])
         return theta, held
 
     def extra(self, opt: Option) -> list[Columns]:
@@ -240,7 +254,7 @@ class Scorer:
     def change(self, trial: Trial) -> FloatArray:
         """How much ``trial`` changes the model force on the main part."""
         if trial.option.is_filter:
-            return trial.theta @ self._filtered(trial.option, 0) - self.model()
+            return self._filtered(trial.option, 0) @ trial.theta - self.model()
         m = self.theta.size
         extra = self.extra(trial.option)[0].values
         base = self.designs[0].columns.values

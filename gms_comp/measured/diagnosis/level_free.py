@@ -89,7 +89,7 @@ def stribeck_with_level(
                 plain = scorer
             residual = rebased.parts[0].part.force_N - scorer.model()
             grid = options(fx.Stribeck, rebased.parts[0], residual, rebased.presliding_m)
-            trial = min((scorer.score(o) for o in grid), key=lambda t: t.heldout_rms_N)
+            trial = min(scorer.score_all(grid), key=lambda t: t.heldout_rms_N)
             if best is None or trial.heldout_rms_N < best.trial.heldout_rms_N:
                 best = FreeLevel(rebased, scorer, trial, scorer)
     return None if best is None or plain is None else dataclasses.replace(best, plain=plain)

@@ -159,8 +159,7 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
         for i, effect in enumerate(pool):
             if progress:
                 progress(f"round {len(chosen) + 1}: {effect.name} ({i + 1}/{len(pool)})")
-            trials = [scorer.score(o) for o in options(effect, parts[0], residual,
-                                                      baseline.presliding_m)]  # fmt: skip
+            trials = scorer.score_all(options(effect, parts[0], residual, baseline.presliding_m))
             if not trials:
                 continue
             best = min(trials, key=lambda t: t.heldout_rms_N)

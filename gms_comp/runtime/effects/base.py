@@ -25,6 +25,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from typing import ClassVar, Protocol
 
+import numba
 import numpy as np
 from scipy import signal
 
@@ -155,21 +156,43 @@ class FilterEffect(Effect):
 
     def filter_columns(self, x: FloatArray, sample_time_s: float) -> FloatArray:
         """Filter along axis 0, starting at rest at the first sample's value."""
-        if np.ndim(x) == 1:
-            b, a = self.filter(sample_time_s)
-            zi = signal.lfilter_zi(b, a)
-            return np.asarray(signal.lfilter(b, a, x, zi=zi * x[0])[0])
-        # each column as a contiguous row: the same numbers 1.5-3 x faster than along
-        # axis 0 (a filter trial refilters every column of a tall design)
-        return self.filter_rows(np.ascontiguousarray(np.asarray(x).T), sample_time_s).T
-
-    def filter_rows(self, rows: FloatArray, sample_time_s: float) -> FloatArray:
-        """:meth:`filter_columns` of ``rows.T``, each column given as a contiguous row
-        (a design's columns transposed once for every filter tried on them)."""
         b, a = self.filter(sample_time_s)
         zi = signal.lfilter_zi(b, a)
-        y, _ = signal.lfilter(b, a, rows, axis=-1, zi=np.multiply.outer(rows[:, 0], zi))
-        return np.asarray(y)
+        if np.ndim(x) == 1:
+            return np.asarray(signal.lfilter(b, a, x, zi=zi * x[0])[0])
+        # every column at once: a design's columns are filtered for every filter tried
+        # on them, and lfilter along each column (or each as a contiguous row) runs one
+        # column at a time, 3-4 x slower than one pass that steps them all together
+        m = max(b.size, a.size)
+        b, a = (np.pad(c / a[0], (0, m - c.size)) for c in (b, a))
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        return _filter_columns(b, a, x, np.multiply.outer(zi, x[0])) if m > 1 else b[0] * x
+
+
+@numba.njit(cache=True)
+def _filter_columns(b: FloatArray, a: FloatArray, x: FloatArray, z: FloatArray) -> FloatArray:
+    """``scipy.signal.lfilter(b, a, x, axis=0, zi=z)``'s output (its direct form II
+    transposed, the same operations in the same order: the same numbers) for a
+    normalised filter (``a[0]`` 1, ``b`` and ``a`` of one length m > 1), the state ``z``
+    (m - 1, k) of every column of ``x`` (n, k) stepped together sample by sample."""
+    n, k = x.shape
+    m = b.size
+    y = np.empty_like(x)
+    z = z.copy()
+    w = np.empty_like(z)
+    for t in range(n):
+        xt, yt = x[t], y[t]
+        for j in range(k):
+            yt[j] = b[0] * xt[j] + z[0, j]
+        for i in range(m - 2):
+            zn, wi = z[i + 1], w[i]
+            for j in range(k):
+                wi[j] = b[i + 1] * xt[j] + zn[j] - a[i + 1] * yt[j]
+        wl = w[m - 2]
+        for j in range(k):
+            wl[j] = b[m - 1] * xt[j] - a[m - 1] * yt[j]
+        z, w = w, z
+    return y
 
 
 def top_speed(ctx: Context) -> float:
