@@ -80,6 +80,23 @@ def test_trials_in_batches_are_the_trials_one_by_one(monkeypatch: pytest.MonkeyP
         assert np.allclose(held, y_held - held_rows @ expected, atol=1e-8)
 
 
+def test_a_refitted_design_reads_its_rows_run_by_run() -> None:
+    # another design on the same rows (the columns squared): a bounded least squares of
+    # its training rows, scored on its held-out rows, whatever the runs of the masks
+    parts, _, _ = _problem(4)
+    p = parts[0]
+    rng = np.random.default_rng(4)
+    for train in (p.train, rng.random(p.train.size) < 0.6):
+        part = PartDesign(p.columns, p.force_N, train, ~train)
+        other = part.columns.values**2
+        expected = optimize.lsq_linear(
+            other[train], p.force_N[train], bounds=(part.columns.lower, np.inf)
+        ).x
+        theta, held = GramDesign([part]).refitted([other])
+        assert np.allclose(theta, expected, atol=1e-8)
+        assert np.allclose(held, p.force_N[~train] - other[~train] @ expected, atol=1e-8)
+
+
 def test_a_replaced_column_equals_the_design_built_with_it() -> None:
     parts, _, _ = _problem(5)
     p = parts[0]

@@ -304,8 +304,8 @@ def refine_knots(prepared: Prepared, basis: FreeBasis, theta: FloatArray) -> Fre
     best = solve_gram_sse(gram.gram, gram.rhs, gram.lower)[1]
     for step in KNOT_STEPS:
         for _ in range(KNOT_ROUNDS):
-            moved = False
-            # each knot moves at most once per round: its trials are known at its start
+            # each knot moves at most once per round: its trials are known at its start,
+            # and their cross products are made at once (one by one, each read the design)
             trials = [
                 (i, d)
                 for i in active
@@ -314,18 +314,25 @@ def refine_knots(prepared: Prepared, basis: FreeBasis, theta: FloatArray) -> Fre
                 )
                 if d != knots[i]
             ]
-            values = columns([d for _, d in trials]) if trials else []
-            moved_knots: set[int] = set()
+            if not trials:
+                break
+            values = columns([d for _, d in trials])
+            cross, inner, rhs = gram.cross_products(values)
+            moved: dict[int, int] = {}  # knot -> the trial it moved to
             for j, (i, d) in enumerate(trials):
-                if i in moved_knots:
+                if i in moved:
                     continue  # moved down: the step up leads back
-                col = [v[:, j] for v in values]
-                replaced = gram.column_replaced(i, col)
-                trial = solve_gram_sse(*replaced, gram.lower)[1]
+                row = cross[:, j].copy()
+                for k, jk in moved.items():
+                    row[k] = inner[jk, j]
+                row[i] = inner[j, j]
+                g, r = gram.gram.copy(), gram.rhs.copy()
+                g[i, :] = g[:, i] = row
+                r[i] = rhs[j]
+                trial = solve_gram_sse(g, r, gram.lower)[1]
                 if trial < best:
-                    best, knots[i], moved = trial, d, True
-                    gram.replace_column(i, col, replaced)
-                    moved_knots.add(i)
+                    best, knots[i], moved[i] = trial, d, j
+                    gram.replace_column(i, [v[:, j] for v in values], (g, r))
             if not moved:
                 break
     order = np.argsort(knots)

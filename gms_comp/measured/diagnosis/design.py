@@ -223,6 +223,42 @@ class GramDesign:
         rhs[i] = sum(float(c @ y) for c, y in zip(train, self._train_y, strict=True))
         return gram, rhs
 
+    def refitted(self, values: Sequence[FloatArray]) -> tuple[FloatArray, FloatArray]:
+        """Coefficients and held-out residual of another design on the same rows and
+        bounds (``values``: one (rows, m) array per part, this design's columns through
+        a filter), fitted on the training rows. Its rows are read in place, run by run
+        of the masks (60 blocks): gathered, a filter trial's rows were copied twice, a
+        third of its time."""
+        m = self.lower.size
+        gram, rhs = np.zeros((m, m)), np.zeros(m)
+        for p, v in zip(self.parts, values, strict=True):
+            for run in _runs(p.train):
+                gram += v[run].T @ v[run]
+                rhs += p.force_N[run] @ v[run]
+        theta = solve_gram(gram, rhs, self.lower)
+        pred = [
+            v[run] @ theta for p, v in zip(self.parts, values, strict=True) for run in _runs(p.held)
+        ]
+        return theta, self._held_y - np.concatenate(pred) if pred else self._held_y
+
+    def cross_products(
+        self, values: Sequence[FloatArray]
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """For candidate columns ``values`` (one (rows, T) array per part): their training
+        cross products with the design (m, T), with each other (T, T) and with the
+        force (T,), the design read once for all of them (:meth:`column_replaced` reads
+        it for each)."""
+        m, t = self.lower.size, values[0].shape[1]
+        design, inner, rhs = np.zeros((m, t)), np.zeros((t, t)), np.zeros(t)
+        for rows, a, y, v in zip(
+            self._train_rows, self._train_a, self._train_y, values, strict=True
+        ):
+            c = np.take(v, rows, axis=0)
+            design += a.T @ c
+            inner += c.T @ c
+            rhs += y @ c
+        return design, inner, rhs
+
     def replace_column(
         self, i: int, values: Sequence[FloatArray],
         replaced: tuple[FloatArray, FloatArray] | None = None,
@@ -283,6 +319,12 @@ class GramDesign:
         gram = np.block([[self.gram, cross], [cross.T, inner]])
         return (gram, np.concatenate([self.rhs, rhs]),
                 np.concatenate([self.lower, extra[0].lower]))  # fmt: skip
+
+
+def _runs(mask: BoolArray) -> list[slice]:
+    """The runs of ``mask``'s true rows as slices, in order."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[False], mask, [False]]).astype(np.int8)))
+    return [slice(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
 def _gather(values: FloatArray, rows: IntArray) -> FloatArray:
