@@ -35,6 +35,10 @@ from gms_comp.runtime.effects.path import Context
 
 Shape = dict[str, float]
 
+# A filter steps this many columns or more together (:func:`_filter_columns`); fewer are
+# filtered one by one (for one to four columns of 188 000 rows, 1.6-8 ms against 6-10).
+STEPPED_TOGETHER = 8
+
 
 @dataclass(frozen=True)
 class Effect:
@@ -160,9 +164,13 @@ class FilterEffect(Effect):
         zi = signal.lfilter_zi(b, a)
         if np.ndim(x) == 1:
             return np.asarray(signal.lfilter(b, a, x, zi=zi * x[0])[0])
-        # every column at once: a design's columns are filtered for every filter tried
-        # on them, and lfilter along each column (or each as a contiguous row) runs one
-        # column at a time, 3-4 x slower than one pass that steps them all together
+        if x.shape[1] < STEPPED_TOGETHER:
+            # each column as a contiguous row (1.5-3 x faster than along axis 0)
+            rows = np.ascontiguousarray(np.asarray(x).T)
+            y, _ = signal.lfilter(b, a, rows, axis=-1, zi=np.multiply.outer(rows[:, 0], zi))
+            return np.asarray(y).T
+        # a design's columns, filtered for every filter tried on them, all at once: one
+        # pass that steps them together is 3-4 x faster than lfilter along each
         m = max(b.size, a.size)
         b, a = (np.pad(c / a[0], (0, m - c.size)) for c in (b, a))
         x = np.ascontiguousarray(x, dtype=np.float64)
