@@ -192,12 +192,13 @@ class GramDesign:
             thetas.append(
                 solve_gram(gram, np.concatenate([self.rhs, rhs[edges[k] : edges[k + 1]]]), lower)
             )
-        base = [a @ np.column_stack([t[:m] for t in thetas]) for a in self._held_a]
+        # the design's share of every trial's held-out prediction, the design read once
+        shares = [a @ np.column_stack([t[:m] for t in thetas]) for a in self._held_a]
         out = []
         for k, (theta, extra) in enumerate(zip(thetas, extras, strict=True)):
             pred = [
-                b[:, k] + np.take(e.values, rows, axis=0) @ theta[m:]
-                for b, rows, e in zip(base, self._held_rows, extra, strict=True)
+                share[:, k] + np.take(e.values, rows, axis=0) @ theta[m:]
+                for share, rows, e in zip(shares, self._held_rows, extra, strict=True)
             ]
             out.append((theta, self._held_y - np.concatenate(pred)))
         return out
