@@ -22,10 +22,10 @@ from gms_comp.measured.diagnosis.design import (
     Columns,
     FloatArray,
     GramDesign,
-    IntArray,
     PartDesign,
     every_row,
     rms,
+    runs,
 )
 from gms_comp.runtime import effects as fx
 
@@ -232,7 +232,7 @@ class Scorer:
         events = []
         for e, fp in zip(extra, self.parts, strict=True):
             gap = max(1, round(EVENT_GAP_S / max(fp.ctx.sample_time_s, 1e-12)))
-            events.append(_runs(where_acting(e.values), gap))
+            events.append(runs(where_acting(e.values), gap))
         return self.gram.left_out(extra, events, LEFT_OUT_FOLDS)
 
     def change(self, trial: Trial) -> FloatArray:
@@ -267,14 +267,6 @@ def fit_on(
         return theta, base.train_rms(theta)
     extra = [Columns.join([o.columns(fp, filters) for o in additive]) for fp in parts]
     return base.trial_train_rms(extra)
-
-
-def _runs(mask: BoolArray, gap: int) -> list[IntArray]:
-    """The rows of ``mask``'s runs, runs less than ``gap`` rows apart merged."""
-    rows = np.flatnonzero(mask)
-    if rows.size == 0:
-        return []
-    return np.split(rows, np.flatnonzero(np.diff(rows) > gap) + 1)
 
 
 def where_acting(values: FloatArray) -> BoolArray:

@@ -132,6 +132,14 @@ class GramDesign:
         ]
 
     @functools.cached_property
+    def _train_slices(self) -> list[list[slice]]:
+        return [_slices(p.train) for p in self.parts]
+
+    @functools.cached_property
+    def _held_slices(self) -> list[list[slice]]:
+        return [_slices(p.held) for p in self.parts]
+
+    @functools.cached_property
     def _held_y(self) -> FloatArray:
         return np.concatenate([p.force_N[p.held] for p in self.parts])
 
@@ -172,26 +180,7 @@ class GramDesign:
 
     def _trials(self, extras: Sequence[Sequence[Columns]]) -> list[tuple[FloatArray, FloatArray]]:
         m = self.lower.size
-        edges = np.cumsum([0] + [e[0].lower.size for e in extras])
-        cross, rhs = np.zeros((m, edges[-1])), np.zeros(edges[-1])
-        inner = [np.zeros((hi - lo, hi - lo)) for lo, hi in itertools.pairwise(edges)]
-        for part, (rows, a, y) in enumerate(
-            zip(self._train_rows, self._train_a, self._train_y, strict=True)
-        ):
-            b = np.empty((rows.size, edges[-1]))
-            for k, extra in enumerate(extras):
-                b[:, edges[k] : edges[k + 1]] = np.take(extra[part].values, rows, axis=0)
-                inner[k] += b[:, edges[k] : edges[k + 1]].T @ b[:, edges[k] : edges[k + 1]]
-            cross += a.T @ b
-            rhs += y @ b
-        thetas = []
-        for k, extra in enumerate(extras):
-            c = cross[:, edges[k] : edges[k + 1]]
-            gram = np.block([[self.gram, c], [c.T, inner[k]]])
-            lower = np.concatenate([self.lower, extra[0].lower])
-            thetas.append(
-                solve_gram(gram, np.concatenate([self.rhs, rhs[edges[k] : edges[k + 1]]]), lower)
-            )
+        thetas = [solve_gram(*system) for system in self._augmented(extras)]
         # the design's share of every trial's held-out prediction, the design read once
         shares = [a @ np.column_stack([t[:m] for t in thetas]) for a in self._held_a]
         out = []
@@ -232,13 +221,15 @@ class GramDesign:
         third of its time."""
         m = self.lower.size
         gram, rhs = np.zeros((m, m)), np.zeros(m)
-        for p, v in zip(self.parts, values, strict=True):
-            for run in _runs(p.train):
+        for p, v, train in zip(self.parts, values, self._train_slices, strict=True):
+            for run in train:
                 gram += v[run].T @ v[run]
                 rhs += p.force_N[run] @ v[run]
         theta = solve_gram(gram, rhs, self.lower)
         pred = [
-            v[run] @ theta for p, v in zip(self.parts, values, strict=True) for run in _runs(p.held)
+            v[run] @ theta
+            for v, held in zip(values, self._held_slices, strict=True)
+            for run in held
         ]
         return theta, self._held_y - np.concatenate(pred) if pred else self._held_y
 
@@ -306,26 +297,47 @@ class GramDesign:
     def augmented(self, extra: Sequence[Columns]) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The training Gram matrix, right-hand side and bounds with ``extra`` (one
         :class:`Columns` per part) added."""
-        m, q = self.lower.size, extra[0].lower.size
-        cross = np.zeros((m, q))
-        inner = np.zeros((q, q))
-        rhs = np.zeros(q)
-        for rows, a, y, e in zip(
-            self._train_rows, self._train_a, self._train_y, extra, strict=True
+        return self._augmented([extra])[0]
+
+    def _augmented(
+        self, extras: Sequence[Sequence[Columns]]
+    ) -> list[tuple[FloatArray, FloatArray, FloatArray]]:
+        """:meth:`augmented` of each of ``extras``, the design's rows read once for all."""
+        m = self.lower.size
+        edges = np.cumsum([0] + [e[0].lower.size for e in extras])
+        cross, rhs = np.zeros((m, edges[-1])), np.zeros(edges[-1])
+        inner = [np.zeros((hi - lo, hi - lo)) for lo, hi in itertools.pairwise(edges)]
+        for part, (rows, a, y) in enumerate(
+            zip(self._train_rows, self._train_a, self._train_y, strict=True)
         ):
-            b = np.take(e.values, rows, axis=0)
+            b = np.empty((rows.size, edges[-1]))
+            for k, extra in enumerate(extras):
+                b[:, edges[k] : edges[k + 1]] = np.take(extra[part].values, rows, axis=0)
+                inner[k] += b[:, edges[k] : edges[k + 1]].T @ b[:, edges[k] : edges[k + 1]]
             cross += a.T @ b
-            inner += b.T @ b
-            rhs += b.T @ y
-        gram = np.block([[self.gram, cross], [cross.T, inner]])
-        return (gram, np.concatenate([self.rhs, rhs]),
-                np.concatenate([self.lower, extra[0].lower]))  # fmt: skip
+            rhs += y @ b
+        out = []
+        for k, extra in enumerate(extras):
+            c = cross[:, edges[k] : edges[k + 1]]
+            out.append((
+                np.block([[self.gram, c], [c.T, inner[k]]]),
+                np.concatenate([self.rhs, rhs[edges[k] : edges[k + 1]]]),
+                np.concatenate([self.lower, extra[0].lower]),
+            ))  # fmt: skip
+        return out
 
 
-def _runs(mask: BoolArray) -> list[slice]:
-    """The runs of ``mask``'s true rows as slices, in order."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[False], mask, [False]]).astype(np.int8)))
-    return [slice(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+def runs(mask: BoolArray, gap: int = 1) -> list[IntArray]:
+    """The rows of ``mask``'s runs, runs less than ``gap`` rows apart merged."""
+    rows = np.flatnonzero(mask)
+    if rows.size == 0:
+        return []
+    return np.split(rows, np.flatnonzero(np.diff(rows) > gap) + 1)
+
+
+def _slices(mask: BoolArray) -> list[slice]:
+    """The runs of ``mask``'s rows as slices, in order."""
+    return [slice(int(r[0]), int(r[-1]) + 1) for r in runs(mask)]
 
 
 def _gather(values: FloatArray, rows: IntArray) -> FloatArray:
