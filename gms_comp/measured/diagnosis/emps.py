@@ -51,7 +51,7 @@ class IdimResult:
 
 def benchmark_kinematics(trace: Trace) -> tuple[Kinematics, FloatArray]:
     """Filtered kinematics and force with the benchmark's first samples dropped."""
-    kin = kinematics(trace, FILTER_CUTOFF_HZ).slice(DROPPED_SAMPLES)
+    kin = kinematics(trace, FILTER_CUTOFF_HZ, reflected=False).slice(DROPPED_SAMPLES)
     return kin, trace.force_N[DROPPED_SAMPLES:]
 
 

@@ -1,0 +1,52 @@
+"""The diagnosis's kinematics at the ends of a trace: a trace that ends moving."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gms_comp.measured.diagnosis.motion import kinematics
+from gms_comp.measured.traces import Trace
+
+RATE_HZ = 3600.0
+STEP_M = 39e-9  # the encoder of independent none-107, which ends at 30.6 mm/s
+ACCEL_CUTOFF_HZ = 245.0
+
+
+def _ends_moving() -> tuple[Trace, np.ndarray]:
+    """Rest, a raised-cosine acceleration to 30 mm/s over 50 ms, then that speed to the
+    end; the encoder's position and the true acceleration."""
+    t = np.arange(20_000) / RATE_HZ
+    start, ramp, speed = 1.0, 0.05, 0.03
+    u = np.clip((t - start) / ramp, 0.0, 1.0)
+    accel = np.where((u > 0) & (u < 1), speed / ramp * (1 - np.cos(2 * np.pi * u)), 0.0)
+    position = speed * ramp * (u**2 / 2 + (np.cos(2 * np.pi * u) - 1) / (4 * np.pi**2))
+    position += speed * np.maximum(t - start - ramp, 0.0)
+    quantised = np.round(position / STEP_M) * STEP_M
+    return Trace("ends moving", t, quantised, np.zeros_like(t)), accel
+
+
+def test_a_trace_that_ends_moving_has_no_acceleration_at_its_end() -> None:
+    trace, accel = _ends_moving()
+    kin = kinematics(trace, 0.45 * RATE_HZ, ACCEL_CUTOFF_HZ)
+    peak = float(np.max(accel))  # 1.2 m/s^2
+    interior = float(np.max(np.abs(kin.acceleration_m_s2 - accel)[200:-200]))
+    end = float(np.max(np.abs(kin.acceleration_m_s2[-200:])))
+    assert interior < 0.05 * peak
+    assert end <= interior  # the end as good as the inside (analytic: 0)
+    assert abs(float(np.mean(kin.velocity_m_s[-200:])) - 0.03) < 1e-6
+    # MATLAB's 12-sample pad (the benchmark's kinematics) rings there
+    benchmark = kinematics(trace, 0.45 * RATE_HZ, ACCEL_CUTOFF_HZ, reflected=False)
+    assert float(np.max(np.abs(benchmark.acceleration_m_s2[-200:]))) > 0.5 * peak
+
+
+def test_reflected_ends_leave_the_inside_as_the_benchmark_filters_it() -> None:
+    trace, _ = _ends_moving()
+    ours = kinematics(trace, 0.45 * RATE_HZ, ACCEL_CUTOFF_HZ)
+    benchmark = kinematics(trace, 0.45 * RATE_HZ, ACCEL_CUTOFF_HZ, reflected=False)
+    inside = slice(500, -500)
+    np.testing.assert_allclose(ours.position_m[inside], benchmark.position_m[inside], atol=1e-12)
+    np.testing.assert_allclose(ours.velocity_m_s[inside], benchmark.velocity_m_s[inside], atol=1e-9)
+    np.testing.assert_allclose(
+        ours.acceleration_m_s2[inside], benchmark.acceleration_m_s2[inside], atol=1e-6
+    )
+    assert ours.position_m.shape == trace.position_m.shape
