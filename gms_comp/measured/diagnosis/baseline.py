@@ -386,8 +386,7 @@ def fitted_on(prepared: Prepared, basis: Basis, info: dict[str, Any]) -> Baselin
 
 
 def placed_on(prepared: Prepared, fitted: Baseline) -> Baseline:
-    """``fitted``'s basis and coefficients (its GMS force in the path context) on
-    ``prepared``'s force."""
+    """``fitted``'s basis and coefficients (its GMS force in the path) on ``prepared``."""
     return _baseline(prepared, fitted.basis, fitted.theta, fitted.info)
 
 
@@ -407,8 +406,13 @@ def refit_gms_force(
 
 
 def rebased(baseline: Baseline, basis: Basis) -> tuple[FittedPart, ...]:
+    """The parts of :func:`rebased_gram`."""
+    return rebased_gram(baseline, basis)[0]
+
+
+def rebased_gram(baseline: Baseline, basis: Basis) -> tuple[tuple[FittedPart, ...], GramDesign]:
     """The baseline's parts on another basis (the same path quantities; the GMS force
-    that basis fits alone)."""
+    that basis fits alone), and the Gram matrix of their base columns it was fitted on."""
     designs = _designs(baseline.prepared, basis)
     parts = tuple(
         dataclasses.replace(fp, phi=phi, base=cols)
@@ -417,7 +421,7 @@ def rebased(baseline: Baseline, basis: Basis) -> tuple[FittedPart, ...]:
     gram = GramDesign(
         [PartDesign(fp.base, fp.part.force_N, fp.part.train, fp.part.held) for fp in parts]
     )
-    return refit_gms_force(parts, gram.fit(), basis)
+    return refit_gms_force(parts, gram.fit(), basis), gram
 
 
 def refine_slip_level(

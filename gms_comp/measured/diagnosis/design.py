@@ -11,6 +11,7 @@ instead of n x (m + q)^2), then a bounded solve in m + q unknowns.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import itertools
 from collections.abc import Sequence
@@ -98,6 +99,11 @@ class PartDesign:
 class GramDesign:
     """The training Gram matrix of a design over several parts, for fast trials.
 
+    The design's rows are read in place, run by run of the masks (60 blocks: about 20
+    runs a part), never gathered: a gathered copy of the training rows cost as much as
+    the Gram matrix itself (1.4 of 22 s of a trace in 776 designs), more with another
+    diagnosis beside it on the memory bus.
+
     Parameters
     ----------
     parts
@@ -109,35 +115,44 @@ class GramDesign:
         self.lower = self.parts[0].columns.lower
         self._train_rows = [np.flatnonzero(p.train) for p in self.parts]
         self._held_rows = [np.flatnonzero(p.held) for p in self.parts]
-        self._train_a = [
-            _gather(p.columns.values, r) for p, r in zip(self.parts, self._train_rows, strict=True)
-        ]
+        self._train_slices = [_slices(p.train) for p in self.parts]
+        self._held_slices = [_slices(p.held) for p in self.parts]
         self._train_y = [p.force_N[p.train] for p in self.parts]
-        self.gram = sum(
-            (a.T @ a for a in self._train_a), np.zeros((self.lower.size, self.lower.size))
-        )
-        self.rhs = sum(
-            (a.T @ y for a, y in zip(self._train_a, self._train_y, strict=True)),
-            np.zeros(self.lower.size),
-        )
+        self.gram, self.rhs = self._train_gram([p.columns.values for p in self.parts])
         self._yy = float(sum(float(y @ y) for y in self._train_y))
         self._n_train = sum(y.size for y in self._train_y)
+        self._owned = False  # the parts' arrays are the caller's until a column is replaced
 
-    @functools.cached_property
-    def _held_a(self) -> list[FloatArray]:
-        """The held-out rows of each part's design, gathered when first needed (a slip
-        level's or a knot's trial needs the training rows alone)."""
-        return [
-            _gather(p.columns.values, r) for p, r in zip(self.parts, self._held_rows, strict=True)
-        ]
+    def _train_gram(self, values: Sequence[FloatArray]) -> tuple[FloatArray, FloatArray]:
+        """The training Gram matrix and right-hand side of designs ``values`` (one
+        (rows, m) array per part) on this design's rows."""
+        m = values[0].shape[1]
+        gram, rhs = np.zeros((m, m)), np.zeros(m)
+        for p, v, train in zip(self.parts, values, self._train_slices, strict=True):
+            for run in train:
+                gram += v[run].T @ v[run]
+                rhs += p.force_N[run] @ v[run]
+        return gram, rhs
 
-    @functools.cached_property
-    def _train_slices(self) -> list[list[slice]]:
-        return [_slices(p.train) for p in self.parts]
+    def _cross(self, part: int, b: FloatArray) -> FloatArray:
+        """The design's training rows of ``part`` times ``b`` (those rows of other
+        columns, in order), (m, k)."""
+        v = self.parts[part].columns.values
+        out = np.zeros((v.shape[1], b.shape[1]))
+        at = 0
+        for run in self._train_slices[part]:
+            size = run.stop - run.start
+            out += v[run].T @ b[at : at + size]
+            at += size
+        return out
 
-    @functools.cached_property
-    def _held_slices(self) -> list[list[slice]]:
-        return [_slices(p.held) for p in self.parts]
+    def _held_prediction(self, values: Sequence[FloatArray], coef: FloatArray) -> list[FloatArray]:
+        """Each part's held-out rows of designs ``values`` times ``coef`` ((m,) or (m, k))."""
+        out = []
+        for v, held in zip(values, self._held_slices, strict=True):
+            blocks = [v[run] @ coef for run in held]
+            out.append(np.concatenate(blocks) if blocks else np.zeros((0, *coef.shape[1:])))
+        return out
 
     @functools.cached_property
     def _held_y(self) -> FloatArray:
@@ -150,14 +165,17 @@ class GramDesign:
     def train_rms(self, theta: FloatArray) -> float:
         """Training RMS of the design with coefficients ``theta``."""
         return rms(
-            np.concatenate(
-                [y - a @ theta for a, y in zip(self._train_a, self._train_y, strict=True)]
-            )
-        )
+            np.concatenate([
+                p.force_N[run] - p.columns.values[run] @ theta
+                for p, train in zip(self.parts, self._train_slices, strict=True)
+                for run in train
+            ])
+        )  # fmt: skip
 
     def held_residual(self, theta: FloatArray) -> FloatArray:
         """Held-out residual of the design with coefficients ``theta``."""
-        return self._held_y - np.concatenate([a @ theta for a in self._held_a])
+        values = [p.columns.values for p in self.parts]
+        return self._held_y - np.concatenate(self._held_prediction(values, theta))
 
     def trial(self, extra: Sequence[Columns]) -> tuple[FloatArray, FloatArray]:
         """Coefficients and held-out residual of this design plus ``extra`` (one
@@ -182,7 +200,8 @@ class GramDesign:
         m = self.lower.size
         thetas = [solve_gram(*system) for system in self._augmented(extras)]
         # the design's share of every trial's held-out prediction, the design read once
-        shares = [a @ np.column_stack([t[:m] for t in thetas]) for a in self._held_a]
+        coef = np.column_stack([t[:m] for t in thetas])
+        shares = self._held_prediction([p.columns.values for p in self.parts], coef)
         out = []
         for k, (theta, extra) in enumerate(zip(thetas, extras, strict=True)):
             pred = [
@@ -206,7 +225,7 @@ class GramDesign:
         train = [np.take(v, rows) for v, rows in zip(values, self._train_rows, strict=True)]
         gram, rhs = self.gram.copy(), self.rhs.copy()
         gram[i, :] = gram[:, i] = sum(
-            (a.T @ c for a, c in zip(self._train_a, train, strict=True)),
+            (self._cross(part, c[:, None])[:, 0] for part, c in enumerate(train)),
             np.zeros(self.lower.size),
         )
         gram[i, i] = sum(float(c @ c) for c in train)
@@ -219,19 +238,9 @@ class GramDesign:
         a filter), fitted on the training rows. Its rows are read in place, run by run
         of the masks (60 blocks): gathered, a filter trial's rows were copied twice, a
         third of its time."""
-        m = self.lower.size
-        gram, rhs = np.zeros((m, m)), np.zeros(m)
-        for p, v, train in zip(self.parts, values, self._train_slices, strict=True):
-            for run in train:
-                gram += v[run].T @ v[run]
-                rhs += p.force_N[run] @ v[run]
+        gram, rhs = self._train_gram(values)
         theta = solve_gram(gram, rhs, self.lower)
-        pred = [
-            v[run] @ theta
-            for v, held in zip(values, self._held_slices, strict=True)
-            for run in held
-        ]
-        return theta, self._held_y - np.concatenate(pred) if pred else self._held_y
+        return theta, self._held_y - np.concatenate(self._held_prediction(values, theta))
 
     def cross_products(
         self, values: Sequence[FloatArray]
@@ -242,11 +251,11 @@ class GramDesign:
         it for each)."""
         m, t = self.lower.size, values[0].shape[1]
         design, inner, rhs = np.zeros((m, t)), np.zeros((t, t)), np.zeros(t)
-        for rows, a, y, v in zip(
-            self._train_rows, self._train_a, self._train_y, values, strict=True
+        for part, (rows, y, v) in enumerate(
+            zip(self._train_rows, self._train_y, values, strict=True)
         ):
             c = np.take(v, rows, axis=0)
-            design += a.T @ c
+            design += self._cross(part, c)
             inner += c.T @ c
             rhs += y @ c
         return design, inner, rhs
@@ -258,10 +267,16 @@ class GramDesign:
         """Replace column ``i`` by ``values`` (one full-length column per part) in place;
         ``replaced``: :meth:`column_replaced`'s result for them, if already at hand."""
         self.gram, self.rhs = replaced or self.column_replaced(i, values)
-        held = self._held_a  # (the parts' columns never change: as the constructor's)
-        for part, v in enumerate(values):
-            self._train_a[part][:, i] = v[self._train_rows[part]]
-            held[part][:, i] = v[self._held_rows[part]]
+        if not self._owned:  # the caller's arrays are left as they were
+            self.parts = tuple(
+                dataclasses.replace(
+                    p, columns=Columns(p.columns.values.copy(order="K"), p.columns.lower)
+                )
+                for p in self.parts
+            )
+            self._owned = True
+        for part, v in zip(self.parts, values, strict=True):
+            part.columns.values[:, i] = v
 
     def left_out(
         self, extra: Sequence[Columns], events: Sequence[Sequence[IntArray]], folds: int
@@ -307,14 +322,12 @@ class GramDesign:
         edges = np.cumsum([0] + [e[0].lower.size for e in extras])
         cross, rhs = np.zeros((m, edges[-1])), np.zeros(edges[-1])
         inner = [np.zeros((hi - lo, hi - lo)) for lo, hi in itertools.pairwise(edges)]
-        for part, (rows, a, y) in enumerate(
-            zip(self._train_rows, self._train_a, self._train_y, strict=True)
-        ):
+        for part, (rows, y) in enumerate(zip(self._train_rows, self._train_y, strict=True)):
             b = np.empty((rows.size, edges[-1]))
             for k, extra in enumerate(extras):
                 b[:, edges[k] : edges[k + 1]] = np.take(extra[part].values, rows, axis=0)
                 inner[k] += b[:, edges[k] : edges[k + 1]].T @ b[:, edges[k] : edges[k + 1]]
-            cross += a.T @ b
+            cross += self._cross(part, b)
             rhs += y @ b
         out = []
         for k, extra in enumerate(extras):
@@ -338,13 +351,6 @@ def runs(mask: BoolArray, gap: int = 1) -> list[IntArray]:
 def _slices(mask: BoolArray) -> list[slice]:
     """The runs of ``mask``'s rows as slices, in order."""
     return [slice(int(r[0]), int(r[-1]) + 1) for r in runs(mask)]
-
-
-def _gather(values: FloatArray, rows: IntArray) -> FloatArray:
-    """``values[rows]``: by ``np.take`` where the rows are contiguous (1.8 ms against 2.8 ms
-    by a mask for 131 000 x 18), by index otherwise (a filtered design's transposed rows,
-    where ``np.take`` is the slower)."""
-    return np.take(values, rows, axis=0) if values.flags.c_contiguous else values[rows]
 
 
 def every_row(parts: Sequence[PartDesign]) -> list[PartDesign]:

@@ -29,6 +29,7 @@ from gms_comp.measured.diagnosis.baseline import (
     fit_baseline,
     placed_on,
     rebased,
+    rebased_gram,
     refine_slip_level,
     refit_gms_force,
 )
@@ -234,8 +235,9 @@ def _level_with_shape(
 
     def cost(u: FloatArray) -> float:
         level, options = unpack(u)
-        parts = rebased(baseline, level)
-        base = base_gram(parts, options)
+        parts, gram = rebased_gram(baseline, level)
+        # without a filter the base columns' Gram matrix is the one the rebase fitted
+        base = base_gram(parts, options) if any(o.is_filter for o in options) else gram
         theta, train_rms = fit_on(base, parts, options)
         for _ in range(JOINT_REFITS):
             parts = refit_gms_force(parts, theta, level)
