@@ -2,7 +2,8 @@
 
 Velocity and acceleration come from the measured position the way the EMPS benchmark
 (Janot, Gautier, Brunot 2019) derives them: a zero-phase 4th-order Butterworth low-pass
-(MATLAB ``filtfilt`` edge padding) and central differences. :func:`decimate_matlab`
+(MATLAB ``filtfilt`` edge padding) and central differences; for a diagnosis the position
+is first continued past each end (``REFLECTED_PERIODS``). :func:`decimate_matlab`
 reproduces MATLAB's ``decimate`` (Chebyshev-I order 8, forward-backward, the last sample
 kept), which the benchmark applies before least squares and before its error norms.
 """
