@@ -3,7 +3,8 @@
 Every case over N seeds (101, 102, ..., or from ``--first-seed``): generate, write the
 canonical CSV, run ``python -m gms_comp diagnose CSV --json`` and time the call (wall
 clock). Prints a markdown table (hit rate per case, false positives on ``none``, unknown
-rate, pair-order rate, parameter errors, median and worst time), or with ``--json`` the
+rate, pair-order rate, effects named that a trace does not hold, parameter errors,
+median, 90th percentile and worst time), or with ``--json`` the
 per-trace rows as JSON;
 ``-o FILE`` writes the JSON rows (after every trace); ``--rows FILE...`` prints the table of
 saved rows without running anything (their main parameters judged again, by today's rule).
@@ -18,9 +19,10 @@ import json
 import subprocess
 import sys
 import tempfile
+from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from statistics import median
+from statistics import median, quantiles
 from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -160,6 +162,33 @@ def _gamma_alone(rows: list[dict[str, Any]]) -> str:
     )
 
 
+def _not_held(rows: list[dict[str, Any]]) -> str:
+    """How many traces with known effects (catalogue and pair cases) have an effect named
+    (first or later) that the trace does not hold, and which effects those were."""
+    extra: Counter[str] = Counter()
+    traces = 0
+    for r in rows:
+        held = {name for name, _ in r["truth"]}
+        wrong = [name for name in r["ranked"] if name not in held]
+        extra.update(wrong)
+        traces += bool(wrong)
+    which = ", ".join(f"{name} {n}" for name, n in extra.most_common())
+    return f"{traces}/{len(rows)}" + (f" ({which})" if which else "")
+
+
+def _times(seconds: list[float]) -> str:
+    """Median, 90th percentile and worst time, and how many took over 15 s and 60 s."""
+    if not seconds:
+        return "-"
+    p90 = quantiles(seconds, n=10)[8] if len(seconds) > 1 else seconds[0]
+    over = {limit: sum(s > limit for s in seconds) for limit in (15.0, 60.0)}
+    return (
+        f"median {median(seconds):.1f} s, 90th percentile {p90:.1f} s, worst "
+        f"{max(seconds):.1f} s; over 15 s: {over[15.0]}/{len(seconds)}, over 60 s: "
+        f"{over[60.0]}/{len(seconds)}"
+    )
+
+
 def table(rows: list[dict[str, Any]]) -> str:
     """The markdown summary of the rows: one line per case, then the totals."""
     lines = [
@@ -181,14 +210,14 @@ def table(rows: list[dict[str, Any]]) -> str:
         "- dwell_time judged by its gain after the median standstill; gamma alone within "
         f"tolerance: {_gamma_alone(rows)} (gamma trades with tau along the dwells)",
         f"- false positives on effect-free traces: {_count(none, lambda r: r['named'] != 'none')}",
+        "- traces with known effects where an effect the trace does not hold is named "
+        f"(first or later): {_not_held(catalogue + pairs)}",
         "- uncatalogued effects called unknown: "
         + _count(unknown, lambda r: r["named"] == "unknown"),
         f"- pairs in the right order: {_count(pairs, lambda r: r['pair_in_order'])}",
         f"- timeouts: {_count(rows, lambda r: r['status'] == 'timeout')}, errors: "
         + _count(rows, lambda r: r["status"].startswith("error")),
-        f"- time per diagnosis: median {median(seconds):.1f} s, worst {max(seconds):.1f} s"
-        if seconds
-        else "- time per diagnosis: -",
+        f"- time per diagnosis: {_times(seconds)}",
     ]
     return "\n".join(lines)
 
