@@ -23,7 +23,10 @@ class DiagnosisConfig:
     # ``margin``. On 20 independent traces the ratio was 0.01-0.45 but one: 1.35 (a 27 nm
     # encoder, held out 1.23 x the noise on the counts, 1.07 x read as motion, 1.01 x on
     # the unquantised position); on the project's own traces (0.1 um counts at 1 kHz)
-    # 3.8, and read as motion they hold out 0.6 % better only. 0: always tried; 1e9: never.
+    # 3.8, and read as motion they hold out 0.6 % better only. Where the baseline's margin
+    # is not met, the readings are compared again once the selection has kept its first
+    # effect, which may hide what the counts cost (``run._reads_better``), and there by
+    # ``margin``, or ``small_margin`` and significant. 0: always tried; 1e9: never.
     encoder_noise_ratio: float = field(default=0.7, metadata=in_range(0.0, 1e9))
     # Elements of the free GMS, on a dense grid over the break-aways a coarse pass of 8
     # found (8 or fewer: one pass over the whole range); the ones the fit keeps are then
