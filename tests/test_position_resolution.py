@@ -101,3 +101,19 @@ def test_a_coarse_encoder_is_read_as_motion_and_a_fine_one_is_not() -> None:
         text = summary({**doc, "trace": f"none-{seed}"}, gen.time_s.size, "friction")
         said = "the encoder's counts read as motion" in text
         assert said == (seed == 119)
+
+
+@pytest.mark.slow
+def test_an_effect_far_above_the_noise_does_not_hide_what_the_counts_cost() -> None:
+    # seed 119's 27 nm encoder with a 1.1 N offset on a 4.4 N level (noise 0.037 N): the
+    # baselines, offset and all, hold out within 1 % of each other on the counts and read
+    # as motion; on the counts a sensor_lowpass was kept second to smooth their steps
+    gen = make_trace("offset", 119)
+    d = diagnose(Trace("offset-119", gen.time_s, gen.position_m, gen.force_N))
+    doc = d.to_json()
+    assert doc["baseline"]["position"] == "encoder counts read as motion"
+    assert [r.effect.name for r in d.ranked] == ["offset"]
+    true_offset = dict(gen.effects)["offset"]["offset_N"]
+    assert d.ranked[0].effect.parameters()["offset_N"] == pytest.approx(true_offset, rel=0.05)
+    # the extended model holds out within 10 % of the force's noise
+    assert d.extended_rms_N < 1.1 * gen.noise_N
