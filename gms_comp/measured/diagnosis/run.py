@@ -110,7 +110,7 @@ def _diagnose(
     # counts that show in the GMS driven by them: read as motion, if that fits better
     ratio = encoder_force_ratio(baseline.gms, prepared)
     info: dict[str, float] = {"encoder_noise_ratio": ratio}
-    unread: tuple[Prepared, Baseline] | None = None
+    as_motion: tuple[Prepared, Baseline] | None = None  # the reading not taken (yet)
     if ratio >= cfg.encoder_noise_ratio and prepared.encoder_step_m > 0.0:
         say("reading the encoder's counts as motion")
         read = prepare(trace, force_kind, validation, cfg, dequantise=True)
@@ -119,12 +119,12 @@ def _diagnose(
         if again.heldout_rms_N < (1.0 - cfg.margin) * baseline.heldout_rms_N:
             prepared, baseline = read, again
         else:
-            unread = read, again
+            as_motion = read, again
     baseline.info.update(info)
     selection = select(baseline, cfg, say)
-    if unread is not None and _reads_better(cfg, baseline, unread[1], selection):
+    if as_motion is not None and _reads_better(cfg, baseline, as_motion[1], selection):
         say("reading the encoder's counts as motion, judged with the first effect kept")
-        prepared, baseline = unread
+        prepared, baseline = as_motion
         baseline.info.update(info)
         selection = select(baseline, cfg, say)
     say("joint refit")
