@@ -191,7 +191,7 @@ def test_the_held_third_follows_the_starts() -> None:
         x = np.round(x / 1e-8) * 1e-8
         kin = kinematics(Trace("synthetic", t, x, np.ones_like(t)), 0.45 / dt)
         still = 0.01 * float(np.max(np.abs(kin.velocity_m_s)))
-        return held_third(third, kin, still, 0.6e-8, 1.5e-8)
+        return held_third(third, kin, still, 0.6e-8, 1.5e-8, x)
 
     assert held([0, 3, 6, 9, 12, 15, 18, 21, 2, 5, 8, 11]) == 2  # 8 / 0 / 4 per third
     assert held([0, 4, 8, 12, 16, 20, 24, 28, 32]) == 1  # 3 / 3 / 3

@@ -350,7 +350,7 @@ def _baseline(
     for p, (phi, cols) in zip(prepared.parts, designs, strict=True):
         ctx = fx.Context.of(
             p.kin, phi @ theta[:n_gms], prepared.standstill_speed_m_s,
-            prepared.reversal_deadband_m, prepared.rest_band_m,
+            prepared.reversal_deadband_m, prepared.rest_band_m, p.path_position_m,
         )  # fmt: skip
         ctx = dataclasses.replace(ctx, gms=gms)
         parts.append(FittedPart(p, phi, cols, ctx))

@@ -69,12 +69,20 @@ QUANTISED_SHARE = 0.9
 
 @dataclass(frozen=True)
 class Part:
-    """One trace prepared for fitting: kinematics, force, training and held-out rows."""
+    """One trace prepared for fitting: kinematics, force, training and held-out rows, and
+    the measured position the path is traced on (:attr:`path_position_m`)."""
 
     kin: Kinematics
     force_N: FloatArray
     train: BoolArray
     held: BoolArray
+    # The path's reversals, rests and distances are the measured position's, as the
+    # compensator sees it: the kinematics' zero-phase low-pass rings where a fast move
+    # stops short (on reversal_transient-132 of the independent generator, a stop from
+    # 74 mm/s overshot its rest by 1.2 nm, 0.76 of the 1.6 nm encoder's step, and that
+    # retreat was a reversal: the transient's 2.8 N flipped at the stop and again at the
+    # start after it, which the truth does not have; the residual read as a tone).
+    path_position_m: FloatArray
 
 
 @dataclass(frozen=True)
@@ -185,18 +193,22 @@ def prepare(
     if validation is None:
         block = np.arange(n) * cfg.n_blocks // n
         third = block % 3
-        held = third == held_third(third, kin, still, deadband, cfg.rest_band_steps * resolution)
+        held = third == held_third(
+            third, kin, still, deadband, cfg.rest_band_steps * resolution, trace.position_m
+        )  # fmt: skip
         for size in (kin.velocity_m_s, kin.acceleration_m_s2):
             held &= ~top_blocks(block, held, np.abs(size))
-        parts: tuple[Part, ...] = (Part(kin, trace.force_N, ~held, held),)
+        parts: tuple[Part, ...] = (Part(kin, trace.force_N, ~held, held, trace.position_m),)
     else:
         vkin = kinematics(validation, cutoff, accel_cutoff)
         check_usable(validation, vkin, deadband, still)
         m = len(validation)
         parts = (
-            Part(kin, trace.force_N, np.ones(n, dtype=bool), np.zeros(n, dtype=bool)),
-            Part(vkin, validation.force_N, np.zeros(m, dtype=bool), np.ones(m, dtype=bool)),
-        )
+            Part(kin, trace.force_N, np.ones(n, dtype=bool), np.zeros(n, dtype=bool),
+                 trace.position_m),
+            Part(vkin, validation.force_N, np.zeros(m, dtype=bool), np.ones(m, dtype=bool),
+                 validation.position_m),
+        )  # fmt: skip
     rest_band = cfg.rest_band_steps * resolution
     return Prepared(
         parts, drive, force_kind, still, deadband, resolution, rest_band, step, read
@@ -209,13 +221,15 @@ def _dequantised(trace: Trace, step_m: float) -> Trace:
 
 def held_third(
     third: IntArray, kin: Kinematics, still_m_s: float, deadband_m: float,
-    rest_band_m: float,
+    rest_band_m: float, position_m: FloatArray,
 ) -> int:  # fmt: skip
     """Which third of the blocks (``third``: each sample's) to hold out: 1, unless it
     holds fewer than ``HELD_STARTS_SHARE`` of a third of the starts after a standstill
     (the path's rests, as the effects see them); then the one nearest a third of them
     (1, 0, 2 on ties)."""
-    ctx = fx.Context.of(kin, np.zeros(third.size), still_m_s, deadband_m, rest_band_m)
+    ctx = fx.Context.of(
+        kin, np.zeros(third.size), still_m_s, deadband_m, rest_band_m, position_m
+    )  # fmt: skip
     starts = ctx.starts(REST_HOLD_S)
     counts = np.bincount(third[starts], minlength=3)
     share = starts.size / 3.0

@@ -219,17 +219,21 @@ class Context:
         standstill_speed_m_s: float = DEFAULT_STANDSTILL_SPEED_M_S,
         reversal_deadband_m: float = 0.0,
         rest_band_m: float = 0.0,
+        path_position_m: ArrayLike | None = None,
     ) -> Context:
         """The context of a whole trajectory (a reversal needs a retreat of more than
         ``reversal_deadband_m``: set it above the position noise; a rest ends when the
         position leaves ``rest_band_m`` around where it stopped, or with 0 when the speed
-        exceeds the standstill speed)."""
+        exceeds the standstill speed). ``path_position_m``: the position the path (its
+        reversals, rests and distances) is traced on, if not ``position_m``."""
         t = np.ascontiguousarray(time_s, dtype=np.float64)
         x = np.ascontiguousarray(position_m, dtype=np.float64)
         v = np.ascontiguousarray(velocity_m_s, dtype=np.float64)
+        traced = x if path_position_m is None else np.ascontiguousarray(path_position_m, float)
         path = _path_run(
-            fresh_path_state(), t, x, v, standstill_speed_m_s, reversal_deadband_m, rest_band_m
-        )
+            fresh_path_state(), t, traced, v, standstill_speed_m_s, reversal_deadband_m,
+            rest_band_m,
+        )  # fmt: skip
         dt = float((t[-1] - t[0]) / (t.size - 1)) if t.size > 1 else 0.0
         return cls.with_path(
             t, x, v, np.asarray(acceleration_m_s2, float), np.asarray(gms_force_N, float), path, dt
@@ -263,6 +267,7 @@ class Context:
         standstill_speed_m_s: float = DEFAULT_STANDSTILL_SPEED_M_S,
         reversal_deadband_m: float = 0.0,
         rest_band_m: float = 0.0,
+        path_position_m: ArrayLike | None = None,
     ) -> Context:
         """The context along ``motion`` (see :meth:`along`)."""
         return cls.along(
@@ -274,6 +279,7 @@ class Context:
             standstill_speed_m_s,
             reversal_deadband_m,
             rest_band_m,
+            path_position_m,
         )
 
     @classmethod
