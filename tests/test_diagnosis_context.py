@@ -35,7 +35,7 @@ def _context(seed: int, cfg: DiagnosisConfig) -> tuple[fx.Context, np.ndarray, n
     kin = prepared.main.kin
     ctx = fx.Context.of(
         kin, np.zeros(len(trace)), prepared.standstill_speed_m_s,
-        prepared.reversal_deadband_m, prepared.rest_band_m,
+        prepared.reversal_deadband_m, prepared.rest_band_m, prepared.main.path_position_m,
     )  # fmt: skip
     # the truth's dwell before each sample: the last standstill (v == 0) that ended
     moving = truth.velocity_m_s != 0.0
@@ -196,3 +196,34 @@ def test_the_held_third_follows_the_starts() -> None:
     assert held([0, 3, 6, 9, 12, 15, 18, 21, 2, 5, 8, 11]) == 2  # 8 / 0 / 4 per third
     assert held([0, 4, 8, 12, 16, 20, 24, 28, 32]) == 1  # 3 / 3 / 3
     assert held([]) == 1
+
+
+def test_a_hard_stop_is_not_a_reversal() -> None:
+    """reversal_transient-132 (a 1.6 nm encoder at 1.5 kHz) stops from 74 mm/s at
+    t = 1.86 s and rests for 1 s before going on the same way. The kinematics' zero-phase
+    low-pass overshoots the rest by 1.2 nm, more than the 0.6-step deadband: traced on it,
+    the path's direction disagreed with the truth's (the sign of its velocity, held
+    through standstills) for 0.96 s in a row. Traced on the measured position, as the
+    diagnosis does, it disagrees only while a slow turn has not yet retreated by a count."""
+    seed = 132
+    gen = make_trace("reversal_transient", seed)
+    truth = baseline(seed)[0]
+    held = np.sign(truth.velocity_m_s)
+    for k in range(1, held.size):
+        held[k] = held[k] or held[k - 1]
+    cfg = DiagnosisConfig()
+    prepared = prepare(Trace("indep", gen.time_s, gen.position_m, gen.force_N), "friction",
+                       None, cfg)  # fmt: skip
+    part = prepared.main
+    ctx = fx.Context.of(
+        part.kin, np.zeros(gen.time_s.size), prepared.standstill_speed_m_s,
+        prepared.reversal_deadband_m, prepared.rest_band_m, part.path_position_m,
+    )  # fmt: skip
+    off = np.flatnonzero((ctx.direction != held) & (ctx.direction != 0.0))
+    runs = np.split(off, np.flatnonzero(np.diff(off) > 1) + 1) if off.size else []
+    longest_s = max((r.size for r in runs), default=0) / truth.sample_rate_Hz
+    assert longest_s < 0.025
+    # the premise: the low-pass does overshoot the rest there by more than the deadband
+    stop = (gen.time_s > 1.85) & (gen.time_s < 1.9)
+    overshoot_m = float(np.max(part.kin.position_m[stop]) - part.kin.position_m[stop][-1])
+    assert overshoot_m > prepared.reversal_deadband_m

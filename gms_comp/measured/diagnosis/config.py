@@ -71,9 +71,9 @@ class DiagnosisConfig:
     unknown_ratio: float = field(default=1.5, metadata=positive())
     unknown_fraction: float = field(default=0.04, metadata=in_range(0.0, 1.0))
     standstill_speed_fraction: float = field(default=0.01, metadata=in_range(0.0, 1.0))
-    # A reversal is a retreat of more than this many position steps: filter ringing after
-    # an encoder step is a fraction of a step (raise it above 1 for an encoder that
-    # dithers by a count at a standstill).
+    # A reversal is a retreat of the measured position (not its low-pass, which rings at
+    # a hard stop) of more than this many position steps: a count back on a clean
+    # encoder (raise it above 1 for one that dithers by a count at a standstill).
     reversal_deadband_steps: float = field(default=0.6, metadata=in_range(0.0, 1e3))
     # A standstill ends when the position leaves this many steps around where the axis
     # came to rest (a count of dither is not a start; 0: when the speed exceeds the
