@@ -32,11 +32,7 @@ def _context(seed: int, cfg: DiagnosisConfig) -> tuple[fx.Context, np.ndarray, n
     extra = friction(truth, gen.effects) - friction(truth, ())
     trace = Trace("indep", gen.time_s, gen.position_m, gen.force_N)
     prepared = prepare(trace, "friction", None, cfg)
-    kin = prepared.main.kin
-    ctx = fx.Context.of(
-        kin, np.zeros(len(trace)), prepared.standstill_speed_m_s,
-        prepared.reversal_deadband_m, prepared.rest_band_m, prepared.main.path_position_m,
-    )  # fmt: skip
+    ctx = prepared.context(prepared.main, np.zeros(len(trace)))
     # the truth's dwell before each sample: the last standstill (v == 0) that ended
     moving = truth.velocity_m_s != 0.0
     starts = np.flatnonzero(moving[1:] & ~moving[:-1]) + 1
@@ -215,10 +211,7 @@ def test_a_hard_stop_is_not_a_reversal() -> None:
     prepared = prepare(Trace("indep", gen.time_s, gen.position_m, gen.force_N), "friction",
                        None, cfg)  # fmt: skip
     part = prepared.main
-    ctx = fx.Context.of(
-        part.kin, np.zeros(gen.time_s.size), prepared.standstill_speed_m_s,
-        prepared.reversal_deadband_m, prepared.rest_band_m, part.path_position_m,
-    )  # fmt: skip
+    ctx = prepared.context(part, np.zeros(gen.time_s.size))
     off = np.flatnonzero((ctx.direction != held) & (ctx.direction != 0.0))
     runs = np.split(off, np.flatnonzero(np.diff(off) > 1) + 1) if off.size else []
     longest_s = max((r.size for r in runs), default=0) / truth.sample_rate_Hz

@@ -348,11 +348,7 @@ def _baseline(
     gms = basis.gms(theta[:n_gms])
     parts = []
     for p, (phi, cols) in zip(prepared.parts, designs, strict=True):
-        ctx = fx.Context.of(
-            p.kin, phi @ theta[:n_gms], prepared.standstill_speed_m_s,
-            prepared.reversal_deadband_m, prepared.rest_band_m, p.path_position_m,
-        )  # fmt: skip
-        ctx = dataclasses.replace(ctx, gms=gms)
+        ctx = dataclasses.replace(prepared.context(p, phi @ theta[:n_gms]), gms=gms)
         parts.append(FittedPart(p, phi, cols, ctx))
     predictions = tuple(fp.base.values @ theta for fp in parts)
     held = np.concatenate(

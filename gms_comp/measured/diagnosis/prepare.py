@@ -104,6 +104,14 @@ class Prepared:
         """The trace the diagnosis is about (its residuals, phases and plots)."""
         return self.parts[0]
 
+    def context(self, part: Part, gms_force_N: FloatArray) -> fx.Context:
+        """The path context of ``part`` with the GMS force ``gms_force_N``: its
+        standstill speed, deadband and rest band, traced on its measured position."""
+        return fx.Context.of(
+            part.kin, gms_force_N, self.standstill_speed_m_s, self.reversal_deadband_m,
+            self.rest_band_m, part.path_position_m,
+        )  # fmt: skip
+
 
 def position_resolution(position_m: FloatArray) -> float:
     """The smallest position step the sensor reports: the encoder's step

@@ -165,13 +165,15 @@ def refit_kept(selection: Selection, cfg: DiagnosisConfig) -> Extended:
         parts = rebased(baseline, basis)
         theta = GramDesign(design(parts, chosen)).fit()
         parts, chosen, theta = _joint_refits(parts, basis, chosen, theta, baseline.presliding_m)
-    kept = _floored(parts, chosen, theta, cfg.min_effect_fraction * baseline.sliding_force_N)
+    forces = _added_forces(parts, chosen, theta)
+    kept = _floored(chosen, forces, cfg.min_effect_fraction * baseline.sliding_force_N)
     if len(kept) < len(chosen):
         history = [h for o, h in zip(chosen, history, strict=True) if o in kept]
         chosen = kept
         theta = GramDesign(design(parts, chosen)).fit()
+        forces = _added_forces(parts, chosen, theta)
     if len(chosen) > 1:
-        order, history = _rank(parts, chosen, theta)
+        order, history = _rank(parts, chosen, forces)
         if order != chosen:
             chosen = order
             theta = GramDesign(design(parts, chosen)).fit()
@@ -321,6 +323,8 @@ def _added_forces(
     """What each of ``chosen`` adds to the jointly fitted model along the main part: an
     additive effect's own columns times its coefficients; a filter's, the model less the
     same coefficients unfiltered."""
+    if not chosen:
+        return []
     values = design(parts, chosen)[0].columns.values
     full = values @ theta
     added = []
@@ -335,29 +339,25 @@ def _added_forces(
     return added
 
 
-def _floored(
-    parts: Sequence[FittedPart], chosen: list[Option], theta: FloatArray, floor_N: float
-) -> list[Option]:
-    """The kept effects whose jointly fitted force reaches ``floor_N`` somewhere (the
-    selection's floor, ``min_effect_fraction`` of the sliding force): an effect kept on
-    the baseline's force may be carried by the others once all are fitted together, and
-    its fitted size go to its bound (a reversal transient of A = 0 N stayed named on
-    pair_drift_offset-119 of the independent generator, its counts read as motion)."""
-    if not chosen:
-        return chosen
-    added = _added_forces(parts, chosen, theta)
-    return [o for o, f in zip(chosen, added, strict=True) if float(np.max(np.abs(f))) >= floor_N]
+def _floored(chosen: list[Option], forces: list[FloatArray], floor_N: float) -> list[Option]:
+    """The kept effects whose jointly fitted force (``forces``, :func:`_added_forces`)
+    reaches ``floor_N`` somewhere (the selection's floor, ``min_effect_fraction`` of the
+    sliding force): an effect kept on the baseline's force may be carried by the others
+    once all are fitted together, and its fitted size go to its bound (a reversal
+    transient of A = 0 N stayed named on pair_drift_offset-119 of the independent
+    generator, its counts read as motion)."""
+    return [o for o, f in zip(chosen, forces, strict=True) if float(np.max(np.abs(f))) >= floor_N]
 
 
 def _rank(
-    parts: Sequence[FittedPart], chosen: list[Option], theta: FloatArray
+    parts: Sequence[FittedPart], chosen: list[Option], forces: list[FloatArray]
 ) -> tuple[list[Option], list[float]]:
     """The kept effects, the largest force first (the RMS along the trace of what each
-    adds to the jointly fitted model, :func:`_added_forces`; the selection takes first
-    what lowers the held-out RMS most, and a level effect such as a drift is partly
-    carried by the GMS until it is kept), each with the held-out RMS once it is added in
-    that order."""
-    size = {id(o): rms(f) for o, f in zip(chosen, _added_forces(parts, chosen, theta), strict=True)}
+    adds to the jointly fitted model, ``forces``: :func:`_added_forces`; the selection
+    takes first what lowers the held-out RMS most, and a level effect such as a drift is
+    partly carried by the GMS until it is kept), each with the held-out RMS once it is
+    added in that order."""
+    size = {id(o): rms(f) for o, f in zip(chosen, forces, strict=True)}
     ranked = sorted(chosen, key=lambda o: size[id(o)], reverse=True)
     return ranked, [Scorer(parts, ranked[: i + 1]).heldout_rms_N for i in range(len(ranked))]
 
