@@ -430,7 +430,7 @@ def refine_slip_level(
     if not isinstance(basis, FreeBasis):
         return None
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in baseline.prepared.parts)
-    # with the kept effects present the cap is lifted (a tenth of the top speed): on the
+    # with the kept effects present the cap is lifted (a third of the top speed): on the
     # EMPS ball screw the extended model's level keeps rising above 2 mm/s (capped, the
     # benchmark's training error went from 2.48 % to 2.69 %)
     vt_range = transition_range(vmax, np.inf)
