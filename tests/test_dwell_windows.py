@@ -44,8 +44,8 @@ def test_a_dwell_column_from_rest_is_the_per_sample_kernels(tau: float, reach: f
     assert np.count_nonzero((ctx.resting[1:] == 0.0) & (ctx.resting[:-1] == 1.0)) >= 10
     stream = dwell_time.RaisedLimits(gms, tau, reach, 1 / reach)  # the column's scale
     expected = np.array([
-        stream.step(xi, vi, ri, di)
-        for xi, vi, ri, di in zip(x, v, ctx.resting, ctx.dwell_s, strict=True)
+        stream.step(xi, vi, ri, di, ui)
+        for xi, vi, ri, di, ui in zip(x, v, ctx.resting, ctx.dwell_s, ctx.direction, strict=True)
     ])  # fmt: skip
     assert np.count_nonzero(expected) > 20
     shape = {"tau_s": tau, "reach": reach}

@@ -427,17 +427,15 @@ def test_a_dwell_gain_along_a_trace_is_its_gain_after_the_median_standstill() ->
     assert fx.Offset(1.0).relative_size(ctx) is None
 
 
-def test_a_dwell_gain_is_kept_through_a_turn_until_the_element_slips() -> None:
+def test_a_dwell_gain_is_lost_where_the_move_turns_back_before_the_element_slips() -> None:
     """The element of the test above, 1 um on after the rest (less than the (g - 1) d =
-    1.4 um of its raised window), then 12 um back. On the way out the raised element
-    stretches k 1 um = 0.5 N beyond the plain one (which slides at W). Going back both
-    unload alike, so that stretch is carried unchanged (the catalogue's form: the gain
-    is lost once the element slips, not where the move turns) until the plain one slips
-    back at -W after 2 d (the sub-elements' smallest: 2 d exp(-SPREAD)); the raised one,
-    its limit still g W, slips after (1 + g) d + 1 um at most, and then nothing is left."""
+    1.4 um of its raised window), then 3 um back: the extra force rises on the way out,
+    and from the sample where the path's direction turns it is 0 (the raised element
+    becomes the plain one), where a raised element that kept its stretch carried about
+    k 1 um = 0.5 N on through the return."""
     w, d = 2.0, 4e-6
     step = 3e-8  # per 0.1 ms sample at 0.3 mm/s
-    out, back = int(1e-6 / step), int(12e-6 / step)
+    out, back = int(1e-6 / step), int(3e-6 / step)
     v = np.concatenate([np.full(1000, 3e-4), np.zeros(5000), np.full(out, 3e-4),
                         np.full(back, -3e-4), np.zeros(500)])  # fmt: skip
     x = np.cumsum(v) * 1e-4
@@ -445,19 +443,9 @@ def test_a_dwell_gain_is_kept_through_a_turn_until_the_element_slips() -> None:
     gms = GmsParams(np.array([w / d]), np.array([w]))
     force = simulate(gms, x, v)[0]
     ctx = dataclasses.replace(fx.Context.along(t, x, v, 0 * t, force), gms=gms)
-    gamma, tau = 0.2, 0.1
-    g = 1.0 + gamma * math.log1p(0.5 / tau)
-    extra = fx.DwellTime(gamma, tau, gamma).apply(ctx, force) - force
+    extra = fx.DwellTime(0.2, 0.1, 0.2).apply(ctx, force) - force
     restart = 6000
-    turn = restart + out
-    carried = extra[turn]
-    assert carried == pytest.approx(w / d * 1e-6, rel=0.05)  # k 1 um, the widest spread
-    returned = (np.arange(x.size) - turn) * step  # distance back since the turn
-    plain_slips = 2 * d * math.exp(-fx.dwell_time.SPREAD)
-    hold = (returned > 0.0) & (returned < plain_slips - 2 * step)
-    np.testing.assert_allclose(extra[hold], carried, rtol=1e-9)
-    raised_slips = ((1 + g) * d + 1e-6) * math.exp(fx.dwell_time.SPREAD)
-    assert raised_slips < 12e-6
-    gone = returned > raised_slips + 2 * step
-    assert np.count_nonzero(gone) > 500
-    np.testing.assert_allclose(extra[gone], 0.0, atol=1e-9)
+    turned = restart + int(np.flatnonzero(ctx.direction[restart:] < 0.0)[0])
+    assert restart + out <= turned <= restart + out + back // 2
+    assert np.max(extra[restart:turned]) > 0.1  # the ramp on the way out
+    assert np.all(extra[turned:] == 0.0)

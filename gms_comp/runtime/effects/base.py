@@ -132,8 +132,12 @@ class Stateful(Protocol):
         """The effect's extra force along ``ctx``, continuing from the state."""
         ...
 
-    def step(self, position_m: float, velocity_m_s: float, resting: float, dwell_s: float) -> float:
-        """One sample of :meth:`run` (the path's rest flag and dwell at that sample)."""
+    def step(
+        self, position_m: float, velocity_m_s: float, resting: float, dwell_s: float,
+        direction: float,
+    ) -> float:  # fmt: skip
+        """One sample of :meth:`run` (the path's rest flag, dwell and direction at that
+        sample)."""
         ...
 
 

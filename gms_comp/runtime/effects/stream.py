@@ -83,7 +83,7 @@ class ExtensionStream:
         for effect, stateful in zip(self.extensions, self._stateful, strict=True):
             if stateful is not None:
                 force += stateful.step(position_m, velocity_m_s, float(ctx.resting[0]),
-                                       float(ctx.dwell_s[0]))  # fmt: skip
+                                       float(ctx.dwell_s[0]), float(ctx.direction[0]))  # fmt: skip
             elif not isinstance(effect, FilterEffect):
                 force = float(effect.apply(ctx, np.array([force]))[0])
         if self._zi is None:  # start at rest at the first value, as the batch filter does
