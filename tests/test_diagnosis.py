@@ -22,11 +22,11 @@ from gms_comp.runtime.effects import ExtensionError, effect_from_dict
 from gms_comp.tables.reduction import reduce_to_gms
 from gms_comp.tables.table import GmsTable, read_table, write_table
 
-# Relative tolerance on the main parameter of each effect (over seeds 1-5 the worst
-# errors were: dwell_time gamma 42 % on seed 2 (tau 0.011 s for 0.034 s, gamma with it
-# along the ridge: the gain after the median dwell within 0.2 %; 16 % at most on the
-# others), reversal_transient amplitude 12 % (the free GMS takes a little of the
-# overshoot)).
+# Relative tolerance on the main parameter of each effect, checked on seed 1 (over seeds
+# 1-5 the worst errors were: dwell_time gamma 42 % on seed 2 (tau 0.011 s for 0.034 s,
+# gamma with it along the ridge: the gain after the median dwell within 0.2 %; 16 % at
+# most on the others), reversal_transient amplitude 12 % (the free GMS takes a little of
+# the overshoot)).
 TOLERANCE = {
     "offset": 0.05,
     "viscous": 0.1,

@@ -66,11 +66,12 @@ class DiagnosisConfig:
     # structure's RMS has the noise's share taken out, so 1.5 x the noise is far beyond
     # chance over thousands of held-out samples; the fraction keeps small mismatches of
     # the baseline out. On 540 traces of the independent generator (seeds 121-150),
-    # effect-free and rightly named traces left at most 1.9 % of the level but one (a
-    # low-pass fitted 3.9 % off left a 0.86 N tone, 5.6 x the noise and 3.0 %: unknown,
-    # the low-pass its partial candidate); uncatalogued effects at least 3.7 % (a level
-    # that follows the stroke, partly taken by a Stribeck fall and the slip level: at
-    # 4 % it was named stribeck, a confident wrong answer), mostly over 3 x and 9 %.
+    # effect-free and rightly named traces left at most 1.9 % of the sliding force but
+    # one (a low-pass fitted 3.9 % off left a 0.86 N tone, 5.6 x the noise and 3.0 %:
+    # unknown, the low-pass its partial candidate); uncatalogued effects left at least
+    # 3.7 % (a level that follows the stroke, partly taken by a Stribeck fall and the
+    # slip level: at 4 % it was named stribeck, a confident wrong answer), most of them
+    # over 3 x the noise and 9 % of the sliding force.
     unknown_ratio: float = field(default=1.5, metadata=positive())
     unknown_fraction: float = field(default=0.03, metadata=in_range(0.0, 1.0))
     standstill_speed_fraction: float = field(default=0.01, metadata=in_range(0.0, 1.0))

@@ -20,8 +20,9 @@ from gms_comp.measured.diagnosis.basis import FreeBasis
 # exponential shape, 0.01 % for the Gaussian), so that the slip level cannot stand in for
 # a viscous law over the trace's speeds - a tenth was too tight for a slow trace: with
 # 2.56 mm/s top speed (v_t at most 0.26 mm/s) a truth's level rising over 0.65 mm/s was
-# read as viscous on the effect-free and inertia traces of one seed (on 180 independent
-# traces: 13 extra effects named in 140 traces with a tenth, 2 with a third) - and at most
+# read as viscous on the effect-free and inertia traces of one seed (seeds 141-150 of the
+# independent generator: of the 140 traces that hold catalogue effects, 13 named one
+# they do not hold with a tenth, 2 with a third) - and at most
 # MAX_TRANSITION_M_S: the contact goes from stick to full slip at micro-slip speeds (the
 # seed: at the stop; a table's 1 um/s), so a level that keeps changing above a few mm/s is the
 # catalogue's (stribeck, viscous) - with v_t free up to 10 mm/s, C_v rising over it and a
