@@ -106,10 +106,11 @@ class Prepared:
 
     def context(self, part: Part, gms_force_N: FloatArray) -> fx.Context:
         """The path context of ``part`` with the GMS force ``gms_force_N``: its
-        standstill speed, deadband and rest band, traced on its measured position."""
+        standstill speed, deadband and rest band, traced on its measured position, its
+        reversals dated from their turning points (a recorded trace knows them)."""
         return fx.Context.of(
             part.kin, gms_force_N, self.standstill_speed_m_s, self.reversal_deadband_m,
-            self.rest_band_m, part.path_position_m,
+            self.rest_band_m, part.path_position_m, hindsight=True,
         )  # fmt: skip
 
 

@@ -174,6 +174,29 @@ def _path_run(
     return out
 
 
+@numba.njit(cache=True)
+def _turned_at_extreme(x: FloatArray, direction: FloatArray, s_rev: FloatArray) -> None:
+    """Date each reversal in hindsight, in place: from the turning point (the last sample
+    at the old direction's extreme), not from where the retreat exceeded the deadband.
+    The distance since it counts from there already; the samples in between get the new
+    direction and their distance from the turning point."""
+    turn = 0  # the last sample at the current direction's extreme
+    for i in range(1, x.size):
+        d = direction[i - 1]
+        if d == 0.0:
+            turn = i
+            continue
+        if direction[i] == -d:
+            cum = 0.0
+            for k in range(turn + 1, i):
+                cum += abs(x[k] - x[k - 1])
+                direction[k] = -d
+                s_rev[k] = cum
+            turn = i
+        elif (x[i] - x[turn]) * d >= 0.0:
+            turn = i
+
+
 def fresh_path_state() -> FloatArray:
     """The path state before the first sample."""
     state = np.zeros(_N_STATE)
@@ -220,12 +243,16 @@ class Context:
         reversal_deadband_m: float = 0.0,
         rest_band_m: float = 0.0,
         path_position_m: ArrayLike | None = None,
+        hindsight: bool = False,
     ) -> Context:
         """The context of a whole trajectory (a reversal needs a retreat of more than
         ``reversal_deadband_m``: set it above the position noise; a rest ends when the
         position leaves ``rest_band_m`` around where it stopped, or with 0 when the speed
         exceeds the standstill speed). ``path_position_m``: the position the path (its
-        reversals, rests and distances) is traced on, if not ``position_m``."""
+        reversals, rests and distances) is traced on, if not ``position_m``. With
+        ``hindsight``, a reversal is dated from its turning point, which a recorded trace
+        knows but a streaming compensator learns only once the retreat exceeds the
+        deadband."""
         t = np.ascontiguousarray(time_s, dtype=np.float64)
         x = np.ascontiguousarray(position_m, dtype=np.float64)
         v = np.ascontiguousarray(velocity_m_s, dtype=np.float64)
@@ -234,6 +261,8 @@ class Context:
             fresh_path_state(), t, traced, v, standstill_speed_m_s, reversal_deadband_m,
             rest_band_m,
         )  # fmt: skip
+        if hindsight:
+            _turned_at_extreme(traced, path[:, _OUT_DIR], path[:, _OUT_S_REV])
         dt = float((t[-1] - t[0]) / (t.size - 1)) if t.size > 1 else 0.0
         return cls.with_path(
             t, x, v, np.asarray(acceleration_m_s2, float), np.asarray(gms_force_N, float), path, dt
@@ -268,6 +297,7 @@ class Context:
         reversal_deadband_m: float = 0.0,
         rest_band_m: float = 0.0,
         path_position_m: ArrayLike | None = None,
+        hindsight: bool = False,
     ) -> Context:
         """The context along ``motion`` (see :meth:`along`)."""
         return cls.along(
@@ -280,6 +310,7 @@ class Context:
             reversal_deadband_m,
             rest_band_m,
             path_position_m,
+            hindsight,
         )
 
     @classmethod
