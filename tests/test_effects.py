@@ -75,6 +75,38 @@ def test_steps_and_ringing_within_the_deadband_are_no_reversal() -> None:
     assert ctx.distance_since_reversal_m[-1] > 3.9e-6
 
 
+@pytest.mark.parametrize("step", [4.2e-8, 1e-9])
+def test_hindsight_dates_a_reversal_at_its_turning_point(step: float) -> None:
+    # a 1 mm sine read through an encoder, turning every 0.5 s; a causal reversal is
+    # known once the retreat exceeds the deadband (7 steps, 2 ms at 42 nm), in hindsight
+    # it dates from the vertex
+    t = np.arange(4000) * 5e-4
+    x = np.round(1e-3 * np.sin(2 * np.pi * t) / step) * step
+    v = 2e-3 * np.pi * np.cos(2 * np.pi * t)
+    band = 7 * step
+    causal = fx.Context.along(t, x, v, 0 * t, 0 * t, reversal_deadband_m=band)
+    seen = fx.Context.along(t, x, v, 0 * t, 0 * t, reversal_deadband_m=band, hindsight=True)
+    vertices = np.array([500, 1500, 2500, 3500])  # t = 0.25 s + k 0.5 s
+    flips = np.flatnonzero(np.diff(seen.direction[1:]) != 0) + 2
+    late = np.flatnonzero(np.diff(causal.direction[1:]) != 0) + 2
+    # within the samples the quantised vertex is flat over (x[k] == x[vertex])
+    flat = [np.flatnonzero(x[k - 50 : k + 50] == x[k])[[0, -1]] + k - 50 for k in vertices]
+    assert all(lo <= f <= hi + 1 for f, (lo, hi) in zip(flips, flat, strict=True))
+    assert np.all(late > flips)
+    # the distance since the reversal runs on from the vertex, and is the causal one after
+    s = seen.distance_since_reversal_m
+    for f, g in zip(flips, late, strict=True):
+        assert s[f] == pytest.approx(abs(x[f] - x[f - 1]), abs=1e-18)  # one move on
+        assert np.all(np.diff(s[f : g + 5]) >= 0.0)
+        np.testing.assert_allclose(s[g : g + 400], causal.distance_since_reversal_m[g : g + 400])
+        assert np.all(seen.direction[f:g] == causal.direction[g])
+    # elsewhere the two agree
+    off = np.ones(t.size, bool)
+    for f, g in zip(flips, late, strict=True):
+        off[f:g] = False
+    np.testing.assert_array_equal(seen.direction[off], causal.direction[off])
+
+
 def test_path_dwell_is_length_of_last_standstill() -> None:
     dt = 1e-3
     v = np.concatenate([np.full(100, 1e-3), np.zeros(300), np.full(100, 1e-3)])
