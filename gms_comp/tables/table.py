@@ -19,7 +19,9 @@ carrying their units::
 
 ``extension_context`` is how the extensions were fitted to see the path (when the
 axis is at rest, what counts as a reversal; ``gms_comp.runtime.effects.path``): the
-observer must see it the same way. Null or absent: the runtime's defaults.
+observer must see it the same way, but causally: the diagnosis dates a reversal from its
+turning point, the observer once the retreat exceeds the deadband. Null or absent: the
+runtime's defaults.
 ``limit_N`` are the limits W_i at level s = 1 (at rest). A load family holds
 the elements at several ball loads (one row each) for interpolation.
 """

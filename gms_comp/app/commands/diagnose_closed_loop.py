@@ -43,10 +43,16 @@ def _effect_force(
     s: Scenario, gms: GmsParams, effects: list[fx.Effect], context: dict[str, float]
 ) -> FloatArray:
     """The physical effects' force along the reference (extended minus plain GMS), the path
-    seen as the diagnosis saw it (``context``: standstill speed, reversal deadband, rest band)."""
+    seen with the diagnosis's standstill speed, reversal deadband and rest band
+    (``context``), causally, as the compensator's stream sees it (the diagnosis dated its
+    reversals in hindsight: they differ within the deadband's latency after each)."""
     ref = build_reference(s)
     force = simulate(gms, ref.position_m, ref.velocity_m_s)[0]
-    ctx = dataclasses.replace(fx.Context.of(ref.kinematics, force, **context), gms=gms)
+    ctx = fx.Context.of(
+        ref.kinematics, force, context["standstill_speed_m_s"], context["reversal_deadband_m"],
+        context["rest_band_m"],
+    )  # fmt: skip
+    ctx = dataclasses.replace(ctx, gms=gms)
     return fx.apply_extensions(effects, ctx) - force
 
 

@@ -80,8 +80,9 @@ _UNKNOWN, _TURNED = 0.0, 2.0
 def _turned(move: float, start_x: float, x: float, direction: float) -> tuple[float, bool]:
     """The move since a start, and whether it turns back at this sample. Its direction
     is the path's (reversal deadband included) once the position has gone that way from
-    the start (a start against the last move flips the path's direction only after the
-    deadband); the first flip after that is the turn."""
+    the start (a start against the last move flips the causal path's direction only
+    after the deadband; one dated in hindsight, where the rest ends); the first flip
+    after that is the turn."""
     if move == _UNKNOWN and direction * (x - start_x) > 0.0:
         return direction, False
     if (move == 1.0 or move == -1.0) and direction == -move:

@@ -3,7 +3,10 @@
 Direction of motion, distance since the last reversal, length of the last standstill,
 distance since the motion resumed and time elapsed come from one numba per-sample routine
 that serves both the batch :meth:`Context.along` and the streaming
-:class:`~gms_comp.runtime.effects.stream.ExtensionStream`.
+:class:`~gms_comp.runtime.effects.stream.ExtensionStream`. A batch context may date its
+reversals in hindsight (``hindsight=True``, as the diagnosis does): from the turning
+point, which a streaming compensator learns of only once the retreat exceeds the
+deadband; otherwise the two are equal sample for sample.
 """
 
 from __future__ import annotations
@@ -175,12 +178,16 @@ def _path_run(
 
 
 @numba.njit(cache=True)
-def _turned_at_extreme(x: FloatArray, direction: FloatArray, s_rev: FloatArray) -> None:
+def _turned_at_extreme(
+    x: FloatArray, resting: FloatArray, direction: FloatArray, s_rev: FloatArray
+) -> None:
     """Date each reversal in hindsight, in place: from the turning point (the last sample
-    at the old direction's extreme), not from where the retreat exceeded the deadband.
-    The distance since it counts from there already; the samples in between get the new
-    direction and their distance from the turning point."""
-    turn = 0  # the last sample at the current direction's extreme
+    at the old direction's extreme, as the causal routine keeps it), or from the end of a
+    rest after it, not from where the retreat exceeded the deadband. The distance since
+    it counts from there already; the samples in between get the new direction and their
+    distance from the turning point. (A rest whose position dithers by a count leaves its
+    last sample at the extreme anywhere in it: the motion turns where the rest ends.)"""
+    turn = 0  # the last sample at the current direction's extreme, or resting after it
     for i in range(1, x.size):
         d = direction[i - 1]
         if d == 0.0:
@@ -193,7 +200,7 @@ def _turned_at_extreme(x: FloatArray, direction: FloatArray, s_rev: FloatArray) 
                 direction[k] = -d
                 s_rev[k] = cum
             turn = i
-        elif (x[i] - x[turn]) * d >= 0.0:
+        elif (x[i] - x[turn]) * d >= 0.0 or resting[i] > 0.0:
             turn = i
 
 
@@ -243,6 +250,7 @@ class Context:
         reversal_deadband_m: float = 0.0,
         rest_band_m: float = 0.0,
         path_position_m: ArrayLike | None = None,
+        *,
         hindsight: bool = False,
     ) -> Context:
         """The context of a whole trajectory (a reversal needs a retreat of more than
@@ -262,7 +270,9 @@ class Context:
             rest_band_m,
         )  # fmt: skip
         if hindsight:
-            _turned_at_extreme(traced, path[:, _OUT_DIR], path[:, _OUT_S_REV])
+            _turned_at_extreme(
+                traced, path[:, _OUT_RESTING], path[:, _OUT_DIR], path[:, _OUT_S_REV]
+            )
         dt = float((t[-1] - t[0]) / (t.size - 1)) if t.size > 1 else 0.0
         return cls.with_path(
             t, x, v, np.asarray(acceleration_m_s2, float), np.asarray(gms_force_N, float), path, dt
@@ -297,6 +307,7 @@ class Context:
         reversal_deadband_m: float = 0.0,
         rest_band_m: float = 0.0,
         path_position_m: ArrayLike | None = None,
+        *,
         hindsight: bool = False,
     ) -> Context:
         """The context along ``motion`` (see :meth:`along`)."""
@@ -310,7 +321,7 @@ class Context:
             reversal_deadband_m,
             rest_band_m,
             path_position_m,
-            hindsight,
+            hindsight=hindsight,
         )
 
     @classmethod

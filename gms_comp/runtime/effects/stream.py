@@ -1,5 +1,7 @@
 """Applying a list of effects to a GMS force: batch (:func:`apply_extensions`) and per
-sample (:class:`ExtensionStream`), equal to each other."""
+sample (:class:`ExtensionStream`), equal to each other on a causal context (one dated in
+hindsight, as the diagnosis fits on, differs within the deadband's latency after each
+reversal: :mod:`.path`)."""
 
 from __future__ import annotations
 
