@@ -35,6 +35,7 @@ from gms_comp.atomic import atomic_path
 target, mode = Path(sys.argv[1]), sys.argv[2]
 chunk = bytes(range(256)) * (int(sys.argv[3]) // 256)
 count = int(sys.argv[4])
+pause = int(sys.argv[5])  # wait here (for the kill) after this chunk; -1: never
 print("ready", flush=True)
 
 def write(f):
@@ -42,6 +43,8 @@ def write(f):
         f.write(chunk)
         f.flush()
         print(i, flush=True)
+        if i == pause:
+            sys.stdin.readline()
 
 if mode == "atomic":
     with atomic_path(target) as tmp, open(tmp, "wb") as f:
@@ -57,10 +60,14 @@ def _new_digest() -> str:
     return hashlib.sha256((bytes(range(256)) * (CHUNK // 256)) * CHUNKS).hexdigest()
 
 
-def _kill_after(target: Path, mode: str, lines: int, extra_s: float) -> None:
-    """Run the writer, kill it with SIGKILL after ``lines`` progress lines + ``extra_s``."""
+def _kill_after(target: Path, mode: str, lines: int, extra_s: float, pause: bool = False) -> None:
+    """Run the writer, kill it with SIGKILL after ``lines`` progress lines + ``extra_s``
+    (with ``pause``, the writer waits there for the kill: on a loaded machine it could
+    otherwise finish the file before the kill lands)."""
+    at = lines - 2 if pause else -1  # the chunk whose line is the ``lines``-th
     proc = subprocess.Popen(
-        [sys.executable, "-c", _WRITER, str(target), mode, str(CHUNK), str(CHUNKS)],
+        [sys.executable, "-c", _WRITER, str(target), mode, str(CHUNK), str(CHUNKS), str(at)],
+        stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         text=True,
     )
@@ -73,6 +80,8 @@ def _kill_after(target: Path, mode: str, lines: int, extra_s: float) -> None:
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=30)
     proc.stdout.close()
+    if proc.stdin is not None:
+        proc.stdin.close()
 
 
 def _state(target: Path, old: bytes, new_digest: str) -> str:
@@ -106,8 +115,9 @@ def test_the_kill_harness_catches_a_plain_writer(tmp_path: Path) -> None:
     target = tmp_path / "table.json"
     old = b"good\n" * 1000
     target.write_bytes(old)
-    _kill_after(target, "plain", CHUNKS // 2, 0.0)
-    assert _state(target, old, _new_digest()).startswith("partial")
+    _kill_after(target, "plain", CHUNKS // 2, 0.0, pause=True)
+    state = _state(target, old, _new_digest())
+    assert state == f"partial ({(CHUNKS // 2 - 1) * CHUNK} bytes)", state
 
 
 def test_failed_write_leaves_the_old_file_and_no_temporary(tmp_path: Path) -> None:
