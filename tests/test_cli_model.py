@@ -179,6 +179,33 @@ def _interrupt(
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, said + err)
 
 
+_LOST = """
+import signal, sys
+from gms_comp.app.cli import deliver_lost_interrupts
+if sys.argv[1] == "hooked":
+    deliver_lost_interrupts()
+class Freed:
+    def __del__(self):  # Ctrl-C while a finalizer runs: its KeyboardInterrupt is dropped
+        signal.raise_signal(signal.SIGINT)
+Freed()
+total = sum(range(10**7))
+print("finished")
+"""
+
+
+@pytest.mark.parametrize("hooked", [True, False])
+def test_ctrl_c_lost_in_a_finalizer_still_interrupts(hooked: bool) -> None:
+    run = subprocess.run(
+        [sys.executable, "-c", _LOST, "hooked" if hooked else "plain"],
+        capture_output=True, text=True, timeout=120, cwd=ROOT, preexec_fn=_default_sigint,
+    )  # fmt: skip
+    assert "KeyboardInterrupt" in run.stderr  # raised in the finalizer, either way
+    if hooked:
+        assert run.returncode != 0 and "finished" not in run.stdout, run.stderr
+    else:  # what the hook is for: without it the interrupt is lost
+        assert run.returncode == 0 and "finished" in run.stdout
+
+
 @pytest.mark.parametrize(
     ("delay_s", "after"),
     [(1.0, None), (0.3, "measuring")],

@@ -15,12 +15,16 @@ Files are written only where an option names them (``-o/--output``, ``--plot DIR
 
 from __future__ import annotations
 
+import _thread
 import argparse
 import importlib
 import os
 import sys
 from collections.abc import Sequence
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
+
+if TYPE_CHECKING:
+    from sys import UnraisableHookArgs
 
 from gms_comp import __version__
 from gms_comp.errors import GmsCompError
@@ -77,6 +81,7 @@ def _command(argv: Sequence[str]) -> str | None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``gms-comp`` with ``argv`` (default: the process arguments); return the exit code."""
+    deliver_lost_interrupts()
     command = "gms-comp"
     try:
         words = sys.argv[1:] if argv is None else list(argv)
@@ -94,6 +99,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         _silence_stdout()
         return 1
     return code
+
+
+def deliver_lost_interrupts() -> None:
+    """Interrupt the main thread again when a Ctrl-C's KeyboardInterrupt is lost in a
+    finalizer. Raised inside a ``__del__`` (llvmlite frees objects while numba loads and
+    compiles), it is reported as unraisable and dropped, and the run goes on to its end:
+    the likely cause of a fresh-clone CI run where ``gms-comp bench``, interrupted 1 s
+    after start, exited 0 (not reproduced in 24 tries after). The hook hands the
+    interrupt to a new thread, which trips SIGINT for the main thread once the finalizer
+    has returned (``interrupt_main`` called from the hook itself raises inside the hook,
+    and that is dropped too). Other unraisable errors go to the hook that was there
+    before; installed once per process."""
+    previous = sys.unraisablehook
+    if getattr(previous, "redelivers_interrupts", False):
+        return
+
+    def hook(unraisable: UnraisableHookArgs) -> None:
+        if isinstance(unraisable.exc_value, KeyboardInterrupt):
+            _thread.start_new_thread(_thread.interrupt_main, ())
+            return
+        previous(unraisable)
+
+    hook.redelivers_interrupts = True  # type: ignore[attr-defined]
+    sys.unraisablehook = hook
 
 
 def quiet_finalizers() -> None:
