@@ -88,37 +88,60 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = build_parser(_command(words)).parse_args(words)
         command = f"gms-comp {args.command}"
         code: int = args.func(args)
+        if _REDELIVERY["lost"]:  # lost, and its thread has not run yet
+            raise KeyboardInterrupt
     except GmsCompError as err:
         print(f"{command}: error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
+        _REDELIVERY["armed"] = False  # interrupted once is enough
         quiet_finalizers()
         print(f"{command}: interrupted", file=sys.stderr)
         return INTERRUPTED
     except BrokenPipeError:  # the reader of stdout went away (`gms-comp ... | head`)
         _silence_stdout()
         return 1
+    finally:
+        _REDELIVERY["armed"] = False
     return code
 
 
+# Whether a lost interrupt is delivered again (until the run is over or interrupted),
+# and whether one was lost and not yet delivered.
+_REDELIVERY = {"armed": False, "lost": False}
+
+
+def _redeliver() -> None:
+    if _REDELIVERY["armed"]:
+        _REDELIVERY["lost"] = False
+        _thread.interrupt_main()
+
+
 def deliver_lost_interrupts() -> None:
-    """Interrupt the main thread again when a Ctrl-C's KeyboardInterrupt is lost in a
-    finalizer. Raised inside a ``__del__`` (llvmlite frees objects while numba loads and
-    compiles), it is reported as unraisable and dropped, and the run goes on to its end:
-    the likely cause of a fresh-clone CI run where ``gms-comp bench``, interrupted 1 s
-    after start, exited 0 (not reproduced in 24 tries after). The hook hands the
-    interrupt to a new thread, which trips SIGINT for the main thread once the finalizer
+    """Interrupt the main thread again when a Ctrl-C's KeyboardInterrupt is lost. Raised
+    inside a finalizer or a ctypes callback, it is reported as unraisable and dropped,
+    and the run goes on to its end: in a fresh-clone CI run, ``gms-comp bench``
+    interrupted 1 s after start exited 0, its stderr showing the KeyboardInterrupt
+    "ignored on calling ctypes callback function" (llvmlite's object-cache notifier,
+    while numba loaded its cache); not reproduced in 24 tries after. The hook hands the
+    interrupt to a new thread, which trips SIGINT for the main thread once the callback
     has returned (``interrupt_main`` called from the hook itself raises inside the hook,
     and that is dropped too). Other unraisable errors go to the hook that was there
-    before; installed once per process."""
+    before; installed once per process, armed until :func:`main` returns or is
+    interrupted (an interrupt it has handled is not delivered again)."""
+    _REDELIVERY.update(armed=True, lost=False)
     previous = sys.unraisablehook
     if getattr(previous, "redelivers_interrupts", False):
         return
 
     def hook(unraisable: UnraisableHookArgs) -> None:
-        if isinstance(unraisable.exc_value, KeyboardInterrupt):
-            _thread.start_new_thread(_thread.interrupt_main, ())
-            return
+        if isinstance(unraisable.exc_value, KeyboardInterrupt) and _REDELIVERY["armed"]:
+            _REDELIVERY["lost"] = True
+            try:
+                _thread.start_new_thread(_redeliver, ())
+                return
+            except RuntimeError:  # no new threads at interpreter shutdown
+                pass
         previous(unraisable)
 
     hook.redelivers_interrupts = True  # type: ignore[attr-defined]
