@@ -48,9 +48,11 @@ def _effect_force(
     reversals in hindsight: they differ within the deadband's latency after each)."""
     ref = build_reference(s)
     force = simulate(gms, ref.position_m, ref.velocity_m_s)[0]
+    # absent keys: the defaults, as the observer reads them
     ctx = fx.Context.of(
-        ref.kinematics, force, context["standstill_speed_m_s"], context["reversal_deadband_m"],
-        context["rest_band_m"],
+        ref.kinematics, force,
+        context.get("standstill_speed_m_s", fx.DEFAULT_STANDSTILL_SPEED_M_S),
+        context.get("reversal_deadband_m", 0.0), context.get("rest_band_m", 0.0),
     )  # fmt: skip
     ctx = dataclasses.replace(ctx, gms=gms)
     return fx.apply_extensions(effects, ctx) - force
