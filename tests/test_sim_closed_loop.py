@@ -9,7 +9,9 @@ from typing import Any, Literal
 import numpy as np
 import pytest
 
+from gms_comp.app.commands.diagnose_closed_loop import _effect_force
 from gms_comp.gms import GmsParams, GmsStream
+from gms_comp.runtime import effects as fx
 from gms_comp.tables.table import Fidelity, GmsTable
 from sim.link import DirectLink
 from sim.plant import ZeroFriction
@@ -19,6 +21,7 @@ from sim.scenarios import (
     Scenario,
     axis_scenarios,
     build_observer,
+    build_reference,
     circularity,
     load_scenario,
     radial_error,
@@ -179,3 +182,31 @@ def test_compiled_run_equals_the_per_cycle_path(
     per_cycle = loop.run(observer, _PythonLink(2))
     for field in ("position_m", "feedforward_A", "current_command_A", "friction_N"):
         np.testing.assert_array_equal(getattr(compiled, field), getattr(per_cycle, field))
+
+
+def test_the_plant_s_reversal_transient_starts_where_the_reference_turns() -> None:
+    """In the closed-loop gain, a diagnosed effect acts on the simulated axis from the
+    reference's turning point (the contact turns with the motion), not once the retreat
+    has passed the deadband, which is when the compensator's stream learns of it."""
+    s = load_scenario(None)
+    x = build_reference(s).position_m
+    band = 2e-6  # coarse, so that the causal latency spans many servo cycles
+    transient = fx.ReversalTransient(1.0, 1e-4)
+    # a standstill speed far below the vertex's (else its slowest samples count as rest)
+    context = {"reversal_deadband_m": band, "standstill_speed_m_s": 1e-9}
+    force = _effect_force(s, STAND_IN, [transient], context)
+    step = np.sign(np.diff(x))
+    moving = np.flatnonzero(step)
+    first = moving[0]
+    # the last sample at the vertex
+    turn = first + int(np.flatnonzero(step[first:] == -step[first])[0])
+    retreat = np.abs(x[turn + 1 :] - x[turn])
+    passed = turn + 1 + int(np.flatnonzero(retreat > band)[0])  # where a causal path turns
+    assert passed - turn > 5
+    new = -step[first]
+    # the new direction, decaying from about A, at every sample from the turn on
+    window = force[turn + 1 : passed + 1]
+    assert np.all(np.sign(window) == new)
+    assert abs(force[turn + 1]) == pytest.approx(1.0, abs=0.05)
+    # and not before (the stroke before the first reversal carries no transient)
+    assert np.sign(force[turn]) != new

@@ -44,8 +44,12 @@ def _effect_force(
 ) -> FloatArray:
     """The physical effects' force along the reference (extended minus plain GMS), the path
     seen with the diagnosis's standstill speed, reversal deadband and rest band
-    (``context``), causally, as the compensator's stream sees it (the diagnosis dated its
-    reversals in hindsight: they differ within the deadband's latency after each)."""
+    (``context``). It is the plant's force, so its reversals are dated in hindsight, from
+    the turning point, as the diagnosis fitted them: the contact turns when the motion
+    does. The compensator's stream learns of a reversal only once the retreat passes the
+    deadband (up to a few samples later); dated causally here too, the plant's transient
+    would wait for it, and the compensator would match the plant's timing by
+    construction."""
     ref = build_reference(s)
     force = simulate(gms, ref.position_m, ref.velocity_m_s)[0]
     # absent keys: the defaults, as the observer reads them
@@ -53,6 +57,7 @@ def _effect_force(
         ref.kinematics, force,
         context.get("standstill_speed_m_s", fx.DEFAULT_STANDSTILL_SPEED_M_S),
         context.get("reversal_deadband_m", 0.0), context.get("rest_band_m", 0.0),
+        hindsight=True,
     )  # fmt: skip
     ctx = dataclasses.replace(ctx, gms=gms)
     return fx.apply_extensions(effects, ctx) - force
