@@ -11,11 +11,13 @@ until the motion reverses; it then sticks again from +-W_i. The velocity level
 
     s(v) = C_v + (1 - C_v) exp(-(|v| / v_t)^delta)
 
-is 1 at rest and C_v when moving. This is the seed's bristle law (its Eq. 1):
-a stuck bristle carries k u up to f_max, a slipping one C_v f_max, so the force
-drops by C_v at a stop and at a reversal, and comes back when slipping
-resumes. C_v > 1 is the seed's slip exaggeration; C_v < 1 gives stiction with
-a Stribeck drop. With C_v = 1 it is Al-Bender's GMS with a constant level.
+is 1 at rest and C_v when moving (the seed's Gaussian at delta = 2; with a finite
+``transition_tail`` p, exp(-u) is (1 + u / p)^-p: at p = 1, delta = 2 the Lorentzian of
+Hess and Soom's Stribeck curve, approaching C_v algebraically). The seed's bristle law
+(its Eq. 1): a stuck bristle carries k u up to f_max, a slipping one C_v f_max, so the
+force drops by C_v at a stop and at a reversal, and comes back when slipping resumes.
+C_v > 1 is the seed's slip exaggeration; C_v < 1 gives stiction with a Stribeck drop.
+With C_v = 1 it is Al-Bender's GMS with a constant level.
 
 The update is written per displacement step: over a sample, dt = |dx| / |v|,
 so the attraction becomes an exact exponential in displacement,
@@ -43,7 +45,7 @@ from numpy.typing import ArrayLike
 from gms_comp.arrays import FloatArray
 
 # Layout of the scalar parameter vector handed to the kernels.
-_SLIP_LEVEL, _TRANSITION_V, _TRANSITION_EXP, _ATTRACTION, _VISCOUS = range(5)
+_SLIP_LEVEL, _TRANSITION_V, _TRANSITION_EXP, _ATTRACTION, _VISCOUS, _TRANSITION_TAIL = range(6)
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,6 +64,8 @@ class GmsParams:
         v_t: speed over which s moves from 1 to ``slip_level``.
     transition_exponent
         delta: shape of that transition (2: Gaussian, 1: exponential).
+    transition_tail
+        p: ``inf``, the exponential approach; finite, (1 + u^delta / p)^-p, u = |v| / v_t.
     attraction_rate_per_s
         C: rate at which a slipping element is drawn to its limit; ``inf``
         gives the rate-independent Maxwell-slip model.
@@ -76,6 +80,7 @@ class GmsParams:
     transition_exponent: float = 2.0
     attraction_rate_per_s: float = math.inf
     viscous_Ns_per_m: float = 0.0
+    transition_tail: float = math.inf
 
     def __post_init__(self) -> None:
         k = _frozen_vector(self.stiffness_N_per_m)
@@ -95,6 +100,7 @@ class GmsParams:
             "transition_exponent": finite(self.transition_exponent)
             and self.transition_exponent > 0,
             "attraction_rate_per_s": self.attraction_rate_per_s > 0,  # inf allowed
+            "transition_tail": self.transition_tail > 0,  # inf allowed
             "viscous_Ns_per_m": finite(self.viscous_Ns_per_m) and self.viscous_Ns_per_m >= 0,
         }
         for name, ok in checks.items():
@@ -118,13 +124,17 @@ class GmsParams:
                 self.transition_exponent,
                 self.attraction_rate_per_s,
                 self.viscous_Ns_per_m,
+                self.transition_tail,
             ]
         )
 
     def level(self, velocity_m_s: ArrayLike) -> FloatArray:
         """The velocity level s(v) (1 at rest, ``slip_level`` when moving)."""
         u = np.abs(np.asarray(velocity_m_s, dtype=float)) / self.transition_velocity_m_s
-        return self.slip_level + (1.0 - self.slip_level) * np.exp(-(u**self.transition_exponent))
+        p = u**self.transition_exponent
+        tail = self.transition_tail
+        approach = np.exp(-p) if math.isinf(tail) else (1.0 + p / tail) ** -tail
+        return self.slip_level + (1.0 - self.slip_level) * approach
 
     def virgin_curve(self, displacement_m: ArrayLike, level: float = 1.0) -> FloatArray:
         """Force after a monotone displacement from the virgin state at a fixed level.
@@ -199,7 +209,9 @@ def _level(speed: float, scalars: FloatArray) -> float:
     u = speed / scalars[_TRANSITION_V]
     # The Gaussian shape is the default; avoid pow() on the hot path for it.
     p = u * u if scalars[_TRANSITION_EXP] == 2.0 else u ** scalars[_TRANSITION_EXP]
-    return scalars[_SLIP_LEVEL] + (1.0 - scalars[_SLIP_LEVEL]) * math.exp(-p)
+    tail = scalars[_TRANSITION_TAIL]
+    approach = math.exp(-p) if math.isinf(tail) else (1.0 + p / tail) ** -tail
+    return scalars[_SLIP_LEVEL] + (1.0 - scalars[_SLIP_LEVEL]) * approach
 
 
 @numba.njit(cache=True, inline="always")

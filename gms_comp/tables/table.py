@@ -6,7 +6,7 @@ carrying their units::
     {"format": "gms-comp-table", "format_version": 1, "gms_comp_version": "0.1.0",
      "units": {...}, "elements": N, "stiffness_N_per_m": [...], "limit_N": [...],
      "velocity_level": {"slip_level": 1.2, "transition_velocity_m_s": 1e-4,
-                        "transition_exponent": 2.0},
+                        "transition_exponent": 2.0, "transition_tail": null},
      "attraction_rate_per_s": null,            # null: infinite (Maxwell-slip)
      "viscous_Ns_per_m": 0.0,
      "source": {"config": "...", "sha256": "..."},
@@ -22,6 +22,7 @@ axis is at rest, what counts as a reversal; ``gms_comp.runtime.effects.path``): 
 observer must see it the same way, but causally: the diagnosis dates a reversal from its
 turning point, the observer once the retreat exceeds the deadband. Null or absent: the
 runtime's defaults.
+``velocity_level.transition_tail`` null or absent: infinite (the exponential approach).
 ``limit_N`` are the limits W_i at level s = 1 (at rest). A load family holds
 the elements at several ball loads (one row each) for interpolation.
 """
@@ -80,6 +81,8 @@ MAX_SLIP_LEVEL = 10.0
 MAX_TRANSITION_VELOCITY_M_S = 1.0
 #: Transition exponent of a table's velocity level.
 MAX_TRANSITION_EXPONENT = 10.0
+#: Transition tail of a table's velocity level (null: infinite, the exponential approach).
+MAX_TRANSITION_TAIL = 1e6
 #: Attraction rate of a table, 1/s (null means infinite: Maxwell-slip).
 MAX_ATTRACTION_RATE_PER_S = 1e9
 #: Model extensions (catalogue effects) of a table.
@@ -163,6 +166,7 @@ def table_to_dict(table: GmsTable) -> dict[str, Any]:
             "slip_level": p.slip_level,
             "transition_velocity_m_s": p.transition_velocity_m_s,
             "transition_exponent": p.transition_exponent,
+            "transition_tail": None if math.isinf(p.transition_tail) else p.transition_tail,
         },
         "attraction_rate_per_s": (
             None if math.isinf(p.attraction_rate_per_s) else p.attraction_rate_per_s
@@ -227,6 +231,7 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
     w = r.vector(r.get(doc, "limit_N"), "limit_N", n, False, MAX_FORCE_N)
     level = r.get(doc, "velocity_level")
     rate = r.get(doc, "attraction_rate_per_s")
+    tail = level.get("transition_tail") if isinstance(level, dict) else None
     params = GmsParams(
         k,
         w,
@@ -241,6 +246,9 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
         if rate is None
         else r.number(doc, "attraction_rate_per_s", True, MAX_ATTRACTION_RATE_PER_S),
         viscous_Ns_per_m=r.number(doc, "viscous_Ns_per_m", False, MAX_VISCOUS_NS_PER_M),
+        transition_tail=math.inf
+        if tail is None
+        else r.number(level, "velocity_level.transition_tail", True, MAX_TRANSITION_TAIL),
     )
     source = r.get(doc, "source")
     fidelity = r.get(doc, "fidelity")

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -45,6 +46,7 @@ from gms_comp.measured.diagnosis.slip_level import (
     EXPONENT_RANGE,
     REFINE_STEPS,
     SLIP_LEVELS,
+    TAILS,
     TRANSITION_POINTS,
     Level,
     coordinate_steps,
@@ -139,6 +141,7 @@ class Baseline:
             "slip_level": self.gms.slip_level,
             "transition_velocity_m_s": self.gms.transition_velocity_m_s,
             "transition_exponent": self.gms.transition_exponent,
+            "transition_tail": None if math.isinf(tail := self.gms.transition_tail) else tail,
             "sliding_force_N": self.sliding_force_N,
             "presliding_m": self.presliding_m,
             "mass_kg": float(self.theta[self.n_gms]) if self.prepared.drive else 0.0,
@@ -196,30 +199,31 @@ def fit_free(
 ) -> FreeBasis:
     """The free basis whose slip level, transition velocity and transition shape fit
     the training rows best, each trial's limits by non-negative least squares (a grid at
-    the Gaussian shape, then coordinate steps; or coordinate steps from ``start``'s).
+    exponent 2 of either tail, then coordinate steps; or steps from ``start``'s).
 
     A viscous term (c >= 0) and an offset are fitted beside them during the search and
     then dropped: the slip level takes the velocity dependence that saturates, a linear
     one is left to ``viscous`` (else C_v stands in for part of it), and an offset does not
-    bend the slip level either (with a third of the level as offset, C_v came out where
-    a Stribeck fall beside it could not be kept)."""
+    bend the slip level (with a third of the level as offset, C_v came out where a
+    Stribeck fall beside it could not be kept)."""
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in prepared.parts)
     vt_range = transition_range(vmax)
-    cache: dict[tuple[float, float, float], float] = {}
+    cache: dict[Level, float] = {}
 
     def cost(level: Level) -> float:
-        key = (round(level[0], 6), round(level[1], 12), round(level[2], 6))
+        key = (round(level[0], 6), round(level[1], 12), round(level[2], 6), level[3])
         if key not in cache:
             cache[key] = _fit(prepared, FreeBasis(breakaway_m, *level), nuisance=True)[2]
         return cache[key]
 
     exponent = EXPONENT_RANGE[1]
     if start is None:
-        best = (cost((1.0, vt_range[1], exponent)), (1.0, vt_range[1], exponent))
-        for cv in SLIP_LEVELS:
-            for vt in np.geomspace(*vt_range, TRANSITION_POINTS):
-                level = (cv, float(vt), exponent)
-                best = min(best, (cost(level), level))
+        best = (cost(flat := (1.0, vt_range[1], exponent, math.inf)), flat)
+        for tail in TAILS:
+            for cv in SLIP_LEVELS:
+                for vt in np.geomspace(*vt_range, TRANSITION_POINTS):
+                    level = (cv, float(vt), exponent, tail)
+                    best = min(best, (cost(level), level))
         steps: tuple[tuple[float, float], ...] = REFINE_STEPS
     else:
         level = level_of(start)
@@ -431,10 +435,8 @@ def refine_slip_level(
         return None
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in baseline.prepared.parts)
     # with the kept effects present the cap is lifted (a third of the top speed): on the
-    # EMPS ball screw the extended model's level keeps rising above 2 mm/s (when the cap
-    # was set, capped there the benchmark's training error went from 2.48 % to 2.69 %;
-    # with the bound at a third instead of a tenth, 2.27 % train, 2.96 % cross-test, as
-    # with a tenth)
+    # EMPS ball screw the extended model's level keeps rising above 2 mm/s (capped there,
+    # the training error went from 2.48 % to 2.69 %; at a third, 2.27 % train, 2.96 %)
     vt_range = transition_range(vmax, np.inf)
 
     # a level met again (a step back, the vertex's C_v +- step) is not refitted

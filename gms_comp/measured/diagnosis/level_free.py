@@ -81,7 +81,7 @@ def stribeck_with_level(
         for vt in np.geomspace(*transition_range(vmax), FREE_TRANSITIONS):
             key = (cv, float(vt))
             if key not in fitted:
-                level = FreeBasis(basis.breakaway_m, cv, key[1], basis.transition_exponent)
+                level = dataclasses.replace(basis, slip_level=cv, transition_velocity_m_s=key[1])
                 fitted[key] = fitted_on(baseline.prepared, level, baseline.info)
             rebased = fitted[key]
             scorer = Scorer(rebased.parts, chosen)

@@ -234,8 +234,8 @@ def _level_with_shape(
     )]  # fmt: skip
 
     def unpack(u: FloatArray) -> tuple[FreeBasis, list[Option]]:
-        level = FreeBasis(
-            basis.breakaway_m, float(u[0]), float(np.exp(u[1])), basis.transition_exponent
+        level = dataclasses.replace(
+            basis, slip_level=float(u[0]), transition_velocity_m_s=float(np.exp(u[1]))
         )
         traded = chosen[at].with_value(key, float(np.exp(u[2])))
         return level, [*chosen[:at], traded, *chosen[at + 1 :]]
