@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 
@@ -9,6 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from indepfriction import velocity_level
 
 from gms_comp.gms import GmsParams, GmsStream, simulate, simulate_elements
 
@@ -149,6 +151,32 @@ def test_level_drops_at_a_stop_and_returns_on_restart() -> None:
     assert force[3] == pytest.approx(c_v * w.sum())
 
 
+@pytest.mark.parametrize("exponent", [1.0, 2.0])
+def test_a_rational_tail_is_the_lorentzian_in_the_kernel_too(exponent: float) -> None:
+    """Tail 1: the level is 1 + (C_v - 1) q / (1 + q), q = (|v| / v_t)^delta (at delta 2
+    the independent generator's law, tests/indepfriction.py), in ``level`` and in the
+    kernel (a slipping contact carries level W at each speed); a tail of 1e6 is the
+    exponential within 1e-5."""
+    k, w = elements(4, 3)
+    c_v, v_t = 1.25, 2e-4
+    p = GmsParams(k, w, slip_level=c_v, transition_velocity_m_s=v_t,
+                  transition_exponent=exponent, transition_tail=1.0)  # fmt: skip
+    speeds = np.geomspace(v_t / 30, 300 * v_t, 40)
+    q = (speeds / v_t) ** exponent
+    law = 1.0 + (c_v - 1.0) * q / (1.0 + q)
+    np.testing.assert_allclose(p.level(speeds), law, rtol=1e-12)
+    if exponent == 2.0:
+        np.testing.assert_allclose(p.level(speeds), velocity_level(speeds, c_v, v_t), rtol=1e-12)
+    # far into slip at each speed: 1 mm in 1 um steps, then the force is level W
+    for speed, expected in zip(speeds[::8], law[::8], strict=True):
+        x = np.linspace(0.0, 1e-3, 1001)
+        force, _ = simulate(p, x, np.full(x.size, speed))
+        assert force[-1] == pytest.approx(expected * w.sum(), rel=1e-12)
+    near = dataclasses.replace(p, transition_tail=1e6)
+    far = dataclasses.replace(p, transition_tail=math.inf)
+    np.testing.assert_allclose(near.level(speeds), far.level(speeds), rtol=1e-5)
+
+
 @pytest.mark.parametrize("attraction_per_s", [30.0, 300.0, 3000.0])
 def test_finite_attraction_relaxes_exponentially_in_time(attraction_per_s: float) -> None:
     """After a stop the slipping element is drawn back to C_v W at rate C / C_v."""
@@ -243,6 +271,8 @@ def test_element_forces_are_each_element_alone_and_sum_to_the_force() -> None:
         ({"slip_level": 0.0}, "slip_level"),
         ({"attraction_rate_per_s": math.nan}, "attraction_rate_per_s"),
         ({"viscous_Ns_per_m": -1.0}, "viscous_Ns_per_m"),
+        ({"transition_tail": 0.0}, "transition_tail"),
+        ({"transition_tail": math.nan}, "transition_tail"),
     ],
 )
 def test_bad_parameters_are_refused(kwargs: dict[str, object], field: str) -> None:

@@ -120,6 +120,9 @@ def set_in(doc: dict[str, Any], dotted: str, value: Any) -> None:
         ("limit_N.0", "0.1", "limit_N[0]"),
         ("viscous_Ns_per_m", -1.0, "viscous_Ns_per_m"),
         ("velocity_level.slip_level", 0.0, "velocity_level.slip_level"),
+        ("velocity_level.transition_tail", -1.0, "velocity_level.transition_tail"),
+        ("velocity_level.transition_tail", "rational", "velocity_level.transition_tail"),
+        ("velocity_level.transition_tail", 1e300, "velocity_level.transition_tail"),
         ("fidelity.rms_rel", None, "fidelity.rms_rel"),
         ("source.sha256", "xyz", "source.sha256"),
         ("units.force", "kN", "units"),
@@ -148,6 +151,25 @@ def test_nan_literal_is_refused(tmp_path: Path) -> None:
     )
     with pytest.raises(TableError, match="NaN"):
         read_table(path)
+
+
+@pytest.mark.parametrize("tail", [1.0, 3.5, math.inf])
+def test_the_level_s_tail_round_trips_and_absent_is_exponential(
+    tmp_path: Path, tail: float
+) -> None:
+    """A finite tail is written as a number and read back; the exponential (inf) as
+    null; a table written before the tail existed (no key) reads as the exponential."""
+    table = make_table([1e6, 2e5], [0.1, 0.2])
+    table = dataclasses.replace(
+        table, params=dataclasses.replace(table.params, transition_tail=tail)
+    )
+    path = tmp_path / "t.json"
+    write_table(path, table)
+    doc = json.loads(path.read_text())
+    assert doc["velocity_level"]["transition_tail"] == (None if math.isinf(tail) else tail)
+    assert read_table(path).params.transition_tail == tail
+    del doc["velocity_level"]["transition_tail"]
+    assert read_table(write_doc(tmp_path, doc)).params.transition_tail == math.inf
 
 
 def test_missing_key_is_named(tmp_path: Path) -> None:
