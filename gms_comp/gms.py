@@ -12,10 +12,10 @@ until the motion reverses; it then sticks again from +-W_i. The velocity level
     s(v) = C_v + (1 - C_v) exp(-(|v| / v_t)^delta)
 
 is 1 at rest and C_v when moving (the seed's Gaussian at delta = 2; with a finite
-``transition_tail`` p, exp(-u) is (1 + u / p)^-p: at p = 1, delta = 2 the Lorentzian of
-Hess and Soom's Stribeck curve, approaching C_v algebraically). The seed's bristle law
-(its Eq. 1): a stuck bristle carries k u up to f_max, a slipping one C_v f_max, so the
-force drops by C_v at a stop and at a reversal, and comes back when slipping resumes.
+``transition_tail`` p, exp(-q) is (1 + q / p)^-p, q = (|v| / v_t)^delta: at p = 1,
+delta = 2, Hess and Soom's Lorentzian, approaching C_v algebraically). The seed's bristle
+law (its Eq. 1): a stuck bristle carries k u up to f_max, a slipping one C_v f_max, so
+the force drops by C_v at a stop and at a reversal, and comes back when slipping resumes.
 C_v > 1 is the seed's slip exaggeration; C_v < 1 gives stiction with a Stribeck drop.
 With C_v = 1 it is Al-Bender's GMS with a constant level.
 
@@ -65,7 +65,7 @@ class GmsParams:
     transition_exponent
         delta: shape of that transition (2: Gaussian, 1: exponential).
     transition_tail
-        p: ``inf``, the exponential approach; finite, (1 + u^delta / p)^-p, u = |v| / v_t.
+        p: ``inf``, the exponential approach; finite, (1 + q / p)^-p, q = (|v| / v_t)^delta.
     attraction_rate_per_s
         C: rate at which a slipping element is drawn to its limit; ``inf``
         gives the rate-independent Maxwell-slip model.
@@ -133,7 +133,7 @@ class GmsParams:
         u = np.abs(np.asarray(velocity_m_s, dtype=float)) / self.transition_velocity_m_s
         p = u**self.transition_exponent
         tail = self.transition_tail
-        approach = np.exp(-p) if math.isinf(tail) else (1.0 + p / tail) ** -tail
+        approach = np.exp(-p if math.isinf(tail) else -tail * np.log1p(p / tail))
         return self.slip_level + (1.0 - self.slip_level) * approach
 
     def virgin_curve(self, displacement_m: ArrayLike, level: float = 1.0) -> FloatArray:
@@ -210,7 +210,7 @@ def _level(speed: float, scalars: FloatArray) -> float:
     # The Gaussian shape is the default; avoid pow() on the hot path for it.
     p = u * u if scalars[_TRANSITION_EXP] == 2.0 else u ** scalars[_TRANSITION_EXP]
     tail = scalars[_TRANSITION_TAIL]
-    approach = math.exp(-p) if math.isinf(tail) else (1.0 + p / tail) ** -tail
+    approach = math.exp(-p if math.isinf(tail) else -tail * math.log1p(p / tail))
     return scalars[_SLIP_LEVEL] + (1.0 - scalars[_SLIP_LEVEL]) * approach
 
 

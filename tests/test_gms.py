@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from indepfriction import velocity_level
 
 from gms_comp.gms import GmsParams, GmsStream, simulate, simulate_elements
+from sim.kernels import truth_force, truth_pack
 
 SPEED_m_s = 1e-2  # far above the level transition speed: the level is slip_level
 STEP_m = 2e-8
@@ -175,6 +176,31 @@ def test_a_rational_tail_is_the_lorentzian_in_the_kernel_too(exponent: float) ->
     near = dataclasses.replace(p, transition_tail=1e6)
     far = dataclasses.replace(p, transition_tail=math.inf)
     np.testing.assert_allclose(near.level(speeds), far.level(speeds), rtol=1e-5)
+
+
+@pytest.mark.parametrize("tail", [1.0, 1e12])
+def test_every_compiled_path_sees_the_tail(tail: float) -> None:
+    """The batch kernel, the stream and the simulated axis's truth step give the level of
+    ``level()`` in slip at each speed, for a rational tail and for one so large that
+    (1 + q / p)^-p must come out as exp(-q) (a naive power loses it at 1e12)."""
+    k, w = elements(3, 4)
+    p = GmsParams(k, w, slip_level=1.3, transition_velocity_m_s=1e-4, transition_tail=tail)
+    if tail > 1e6:
+        exponential = dataclasses.replace(p, transition_tail=math.inf)
+        np.testing.assert_allclose(p.level([1e-4, 2e-4]), exponential.level([1e-4, 2e-4]),
+                                   rtol=1e-9)  # fmt: skip
+    for speed in (3e-5, 1e-4, 4e-4):
+        x = np.linspace(0.0, 1e-3, 501)
+        expected = float(p.level(speed)[()]) * w.sum()
+        assert simulate(p, x, np.full(x.size, speed))[0][-1] == pytest.approx(expected, rel=1e-12)
+        stream, truth = GmsStream(p), GmsStream(p)
+        pack = truth_pack(truth)
+        assert pack is not None
+        for xi in x:
+            last = stream.step(float(xi), speed)
+            on_axis = truth_force(pack, float(xi), speed)
+        assert last == pytest.approx(expected, rel=1e-12)
+        assert on_axis == pytest.approx(expected, rel=1e-12)
 
 
 @pytest.mark.parametrize("attraction_per_s", [30.0, 300.0, 3000.0])

@@ -361,3 +361,25 @@ def test_diagnosis_of_emps_holds_the_benchmark_figures(capsys: pytest.CaptureFix
     assert train["extended"] < train["reference_idim_ls"]
     assert cross["extended"] < cross["reference_idim_ls"]
     assert doc["effect"] not in ("none", "unknown")
+
+
+def test_a_diagnose_json_s_baseline_keeps_its_velocity_level(tmp_path: Path) -> None:
+    """The replayed baseline is the one the diagnosis fitted: its transition speed,
+    exponent and tail, not only C_v (an older JSON without them gets the defaults)."""
+    baseline = {"breakaway_m": [1e-6, 1e-5], "limit_N": [2.0, 0.0], "slip_level": 1.2,
+                "transition_velocity_m_s": 3e-4, "transition_exponent": 1.5,
+                "transition_tail": 1.0, "mass_kg": 0.0}  # fmt: skip
+    path = tmp_path / "diagnosis.json"
+    path.write_text(json.dumps({"baseline": baseline}))
+    gms = replay.load_model(path).axis.gms
+    assert gms is not None
+    assert (gms.slip_level, gms.transition_velocity_m_s) == (1.2, 3e-4)
+    assert (gms.transition_exponent, gms.transition_tail) == (1.5, 1.0)
+    np.testing.assert_allclose(gms.limit_N, [2.0])
+    for key in ("transition_velocity_m_s", "transition_exponent", "transition_tail"):
+        del baseline[key]
+    path.write_text(json.dumps({"baseline": baseline}))
+    old = replay.load_model(path).axis.gms
+    assert old is not None
+    assert (old.transition_velocity_m_s, old.transition_exponent) == (1e-4, 2.0)
+    assert old.transition_tail == math.inf

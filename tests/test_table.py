@@ -111,7 +111,7 @@ def set_in(doc: dict[str, Any], dotted: str, value: Any) -> None:
 @pytest.mark.parametrize(
     ("dotted", "value", "field"),
     [
-        ("format_version", 2, "format_version"),
+        ("format_version", 3, "format_version"),
         ("gms_comp_version", "7.0.0", "gms_comp_version"),
         ("format", "something-else", "format"),
         ("elements", 3, "stiffness_N_per_m"),
@@ -167,6 +167,8 @@ def test_the_level_s_tail_round_trips_and_absent_is_exponential(
     write_table(path, table)
     doc = json.loads(path.read_text())
     assert doc["velocity_level"]["transition_tail"] == (None if math.isinf(tail) else tail)
+    # a reader that does not know the tail must refuse a finite one, not run it exponential
+    assert doc["format_version"] == (1 if math.isinf(tail) else 2)
     assert read_table(path).params.transition_tail == tail
     del doc["velocity_level"]["transition_tail"]
     assert read_table(write_doc(tmp_path, doc)).params.transition_tail == math.inf

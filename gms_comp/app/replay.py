@@ -233,14 +233,19 @@ def table_axis_model(
 
 
 def baseline_axis_model(baseline: Mapping[str, Any], where: str) -> RigidAxisModel:
-    """The rigid axis of a diagnosis baseline (its free GMS, slip level and mass)."""
+    """The rigid axis of a diagnosis baseline (its free GMS, velocity level and mass; a
+    baseline written before the level's transition was recorded has the defaults)."""
     try:
         breakaway = np.asarray(baseline["breakaway_m"], float)
         limit = np.asarray(baseline["limit_N"], float)
         keep = limit > 0
+        tail = baseline.get("transition_tail")
         gms = GmsParams(
-            limit[keep] / breakaway[keep], limit[keep], slip_level=float(baseline["slip_level"])
-        )
+            limit[keep] / breakaway[keep], limit[keep], slip_level=float(baseline["slip_level"]),
+            transition_velocity_m_s=float(baseline.get("transition_velocity_m_s", 1e-4)),
+            transition_exponent=float(baseline.get("transition_exponent", 2.0)),
+            transition_tail=math.inf if tail is None else float(tail),
+        )  # fmt: skip
         return RigidAxisModel(float(baseline["mass_kg"]), gms=gms)
     except (KeyError, TypeError, ValueError) as err:
         raise InputError(where, "baseline", f"not a diagnosis baseline ({err})") from err

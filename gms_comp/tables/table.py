@@ -55,6 +55,9 @@ from gms_comp.validation import (
 
 FORMAT = "gms-comp-table"
 FORMAT_VERSION = 1
+# A finite velocity-level tail is written as version 2, so that a reader that does not
+# know the tail refuses the table rather than run it with the exponential approach.
+TAIL_FORMAT_VERSION = 2
 UNITS = {
     "position": "m",
     "velocity": "m/s",
@@ -81,7 +84,8 @@ MAX_SLIP_LEVEL = 10.0
 MAX_TRANSITION_VELOCITY_M_S = 1.0
 #: Transition exponent of a table's velocity level.
 MAX_TRANSITION_EXPONENT = 10.0
-#: Transition tail of a table's velocity level (null: infinite, the exponential approach).
+#: Transition tail of a table's velocity level (null: infinite, the exponential approach;
+#: a larger tail is written as null: its level is the exponential's within 3e-7).
 MAX_TRANSITION_TAIL = 1e6
 #: Attraction rate of a table, 1/s (null means infinite: Maxwell-slip).
 MAX_ATTRACTION_RATE_PER_S = 1e9
@@ -154,9 +158,10 @@ def table_to_dict(table: GmsTable) -> dict[str, Any]:
     """The JSON document of a table."""
     p = table.params
     family = table.load_family
+    tail = None if p.transition_tail >= MAX_TRANSITION_TAIL else p.transition_tail
     return {
         "format": FORMAT,
-        "format_version": FORMAT_VERSION,
+        "format_version": FORMAT_VERSION if tail is None else TAIL_FORMAT_VERSION,
         "gms_comp_version": table.version,
         "units": dict(UNITS),
         "elements": p.n_elements,
@@ -166,7 +171,7 @@ def table_to_dict(table: GmsTable) -> dict[str, Any]:
             "slip_level": p.slip_level,
             "transition_velocity_m_s": p.transition_velocity_m_s,
             "transition_exponent": p.transition_exponent,
-            "transition_tail": None if math.isinf(p.transition_tail) else p.transition_tail,
+            "transition_tail": tail,
         },
         "attraction_rate_per_s": (
             None if math.isinf(p.attraction_rate_per_s) else p.attraction_rate_per_s
@@ -215,8 +220,8 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
     if doc.get("format") != FORMAT:
         raise r.error("format", f"must be {FORMAT!r}, got {doc.get('format')!r}")
     fv = r.get(doc, "format_version")
-    if fv != FORMAT_VERSION:
-        raise r.error("format_version", f"unknown version {fv!r} (this reader knows 1)")
+    if fv not in (FORMAT_VERSION, TAIL_FORMAT_VERSION) or isinstance(fv, bool):
+        raise r.error("format_version", f"unknown version {fv!r} (this reader knows 1 and 2)")
     version = r.version(doc, "gms_comp_version")
     units = r.get(doc, "units")
     if units != UNITS:
