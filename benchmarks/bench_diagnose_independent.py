@@ -111,7 +111,10 @@ def _case_line(mine: list[dict[str, Any]]) -> str:
     case = mine[0]["case"]
     hits = _count(
         mine,
-        lambda r: r["pair_in_order"] if case.startswith("pair_") else r["named"] == r["expected"],
+        # a row that failed (timeout, refused trace) has no pair order
+        lambda r: (
+            r.get("pair_in_order") if case.startswith("pair_") else r["named"] == r["expected"]
+        ),
     )
     named = ", ".join(
         (r["named"] or r["status"]) + (f" ({' > '.join(r['ranked'])})" if r["ranked"] else "")
@@ -214,7 +217,7 @@ def table(rows: list[dict[str, Any]]) -> str:
         f"(first or later): {_not_held(catalogue + pairs)}",
         "- uncatalogued effects called unknown: "
         + _count(unknown, lambda r: r["named"] == "unknown"),
-        f"- pairs in the right order: {_count(pairs, lambda r: r['pair_in_order'])}",
+        f"- pairs in the right order: {_count(pairs, lambda r: r.get('pair_in_order'))}",
         f"- timeouts: {_count(rows, lambda r: r['status'] == 'timeout')}, errors: "
         + _count(rows, lambda r: r["status"].startswith("error")),
         f"- time per diagnosis: {_times(seconds)}",
