@@ -19,16 +19,16 @@ the force drops by C_v at a stop and at a reversal, and comes back when slipping
 C_v > 1 is the seed's slip exaggeration; C_v < 1 gives stiction with a Stribeck drop.
 With C_v = 1 it is Al-Bender's GMS with a constant level.
 
-The update is written per displacement step: over a sample, dt = |dx| / |v|,
-so the attraction becomes an exact exponential in displacement,
-exp(-C |dx| / (s |v|)). For C -> infinity (the default) that factor is 0 and
-the stick part is the exact, unconditionally stable play-operator
-(Maxwell-slip) update delta_i <- clip(delta_i + dx, -W_i/k_i, W_i/k_i),
-F_i = k_i delta_i, with slipping elements carrying s(v) W_i. A sample at rest
-(v = 0) applies the new level at once.
+With ``limit_follows_level`` the stick limit is s(v) W_i itself (a play operator of width
+s(v) W_i / k_i, an independent reading of "C_v maps to a velocity-dependent limit"): a
+slipping element climbs from W_i to s W_i over (s - 1) W_i / k_i more travel, not at once.
 
-One numba per-sample routine serves both interfaces: :func:`simulate` loops it
-over a whole trajectory, :class:`GmsStream` calls it once per sample.
+The update is per displacement step (dt = |dx| / |v|): the attraction is the exact factor
+exp(-C |dx| / (s |v|)) left of a slipping element's distance to its target; for C = inf
+(the default) 0, and the stick part is the exact, unconditionally stable play-operator
+update F_i <- clip(F_i + k_i dx, -W_i, W_i). A sample at rest applies the new level at once.
+
+One numba per-sample routine serves both: :func:`simulate` loops it, :class:`GmsStream` steps it.
 """
 
 from __future__ import annotations
@@ -45,7 +45,8 @@ from numpy.typing import ArrayLike
 from gms_comp.arrays import FloatArray
 
 # Layout of the scalar parameter vector handed to the kernels.
-_SLIP_LEVEL, _TRANSITION_V, _TRANSITION_EXP, _ATTRACTION, _VISCOUS, _TRANSITION_TAIL = range(6)
+_SLIP_LEVEL, _TRANSITION_V, _TRANSITION_EXP, _ATTRACTION, _VISCOUS = range(5)
+_TRANSITION_TAIL, _PLAY = 5, 6
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,6 +67,9 @@ class GmsParams:
         delta: shape of that transition (2: Gaussian, 1: exponential).
     transition_tail
         p: ``inf``, the exponential approach; finite, (1 + q / p)^-p, q = (|v| / v_t)^delta.
+    limit_follows_level
+        False: the seed's law (stick up to W_i, slip at s W_i); True: stick up to s W_i
+        (then ``attraction_rate_per_s`` must be inf).
     attraction_rate_per_s
         C: rate at which a slipping element is drawn to its limit; ``inf``
         gives the rate-independent Maxwell-slip model.
@@ -81,6 +85,7 @@ class GmsParams:
     attraction_rate_per_s: float = math.inf
     viscous_Ns_per_m: float = 0.0
     transition_tail: float = math.inf
+    limit_follows_level: bool = False
 
     def __post_init__(self) -> None:
         k = _frozen_vector(self.stiffness_N_per_m)
@@ -101,6 +106,8 @@ class GmsParams:
             and self.transition_exponent > 0,
             "attraction_rate_per_s": self.attraction_rate_per_s > 0,  # inf allowed
             "transition_tail": self.transition_tail > 0,  # inf allowed
+            "limit_follows_level": isinstance(self.limit_follows_level, bool)
+            and not (self.limit_follows_level and math.isfinite(self.attraction_rate_per_s)),
             "viscous_Ns_per_m": finite(self.viscous_Ns_per_m) and self.viscous_Ns_per_m >= 0,
         }
         for name, ok in checks.items():
@@ -125,6 +132,7 @@ class GmsParams:
                 self.attraction_rate_per_s,
                 self.viscous_Ns_per_m,
                 self.transition_tail,
+                float(self.limit_follows_level),
             ]
         )
 
@@ -228,10 +236,14 @@ def _sample(dx: float, speed: float, scalars: FloatArray) -> tuple[float, float]
 
 @numba.njit(cache=True, inline="always")
 def _element(
-    f: float, d: float, k: float, limit: float, dx: float, level: float, remain: float
+    f: float, d: float, k: float, limit: float, dx: float, level: float, remain: float, play: float
 ) -> tuple[float, float]:
     """Element force and slip direction after a step ``dx`` (branch-free, so that the
-    element loops vectorise)."""
+    element loops vectorise; ``play``: the limit follows the level)."""
+    if play != 0.0:
+        bound = level * limit
+        moved = f + k * dx
+        return min(max(moved, -bound), bound), (moved > bound) * 1.0 - (moved < -bound) * 1.0
     slipping = (d * dx >= 0.0) & (d != 0.0)
     # An element leaving slip (a reversal) restarts from its stick limit.
     stick = (f if d == 0.0 else d * limit) + k * dx
@@ -263,13 +275,14 @@ def _run(
     f = forces.copy()
     d = slips.copy()
     previous = position[0] if math.isnan(last_position) else last_position
+    play = scalars[_PLAY]
     for j in range(position.size):
         dx = position[j] - previous
         previous = position[j]
         level, remain = _sample(dx, abs(velocity[j]), scalars)
         total = 0.0
         for i in range(k.size):
-            f[i], d[i] = _element(f[i], d[i], k[i], w[i], dx, level, remain)
+            f[i], d[i] = _element(f[i], d[i], k[i], w[i], dx, level, remain, play)
             total += f[i]
         out[j] = total + scalars[_VISCOUS] * velocity[j]
     forces[:] = f
@@ -292,12 +305,13 @@ def _run_elements(
     f = np.zeros(k.size)
     d = np.zeros(k.size)
     previous = position[0]
+    play = scalars[_PLAY]
     for j in range(position.size):
         dx = position[j] - previous
         previous = position[j]
         level, remain = _sample(dx, abs(velocity[j]), scalars)
         for i in range(k.size):
-            f[i], d[i] = _element(f[i], d[i], k[i], w[i], dx, level, remain)
+            f[i], d[i] = _element(f[i], d[i], k[i], w[i], dx, level, remain, play)
             out[j, i] = f[i]
 
 
@@ -316,29 +330,15 @@ def _path(position_m: ArrayLike, velocity_m_s: ArrayLike) -> tuple[FloatArray, F
 
 
 def simulate(
-    params: GmsParams,
-    position_m: ArrayLike,
-    velocity_m_s: ArrayLike,
+    params: GmsParams, position_m: ArrayLike, velocity_m_s: ArrayLike,
     state: GmsState | None = None,
-) -> tuple[FloatArray, GmsState]:
-    """Friction force along a sampled trajectory.
+) -> tuple[FloatArray, GmsState]:  # fmt: skip
+    """Friction force along a sampled trajectory, and the state after its last sample.
 
-    Parameters
-    ----------
-    params
-        The model.
-    position_m, velocity_m_s
-        Samples of the same length. The displacement between samples drives
-        the elements; the velocity sets the level s(v), the attraction time
-        and the viscous force.
-    state
-        State to continue from (not modified); ``None`` starts virgin at the
-        first position.
-
-    Returns
-    -------
-    force_N, state
-        The friction force at each sample and the state after the last one.
+    ``position_m``, ``velocity_m_s``: samples of one length; the displacement between
+    samples drives the elements, the velocity sets the level s(v), the attraction time
+    and the viscous force. ``state``: where to continue from (not modified); ``None``
+    starts virgin at the first position.
 
     Examples
     --------

@@ -111,7 +111,7 @@ def set_in(doc: dict[str, Any], dotted: str, value: Any) -> None:
 @pytest.mark.parametrize(
     ("dotted", "value", "field"),
     [
-        ("format_version", 3, "format_version"),
+        ("format_version", 4, "format_version"),
         ("gms_comp_version", "7.0.0", "gms_comp_version"),
         ("format", "something-else", "format"),
         ("elements", 3, "stiffness_N_per_m"),

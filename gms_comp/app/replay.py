@@ -239,12 +239,17 @@ def baseline_axis_model(baseline: Mapping[str, Any], where: str) -> RigidAxisMod
         breakaway = np.asarray(baseline["breakaway_m"], float)
         limit = np.asarray(baseline["limit_N"], float)
         keep = limit > 0
-        tail = baseline.get("transition_tail")
+        level = {
+            key: float(baseline[key])
+            for key in ("transition_velocity_m_s", "transition_exponent", "transition_tail")
+            if baseline.get(key) is not None  # absent or null (an infinite tail): the default
+        }
+        law = baseline.get("limit_follows_level", False)
+        if not isinstance(law, bool):
+            raise TypeError(f"limit_follows_level must be true or false, got {law!r}")
         gms = GmsParams(
-            limit[keep] / breakaway[keep], limit[keep], slip_level=float(baseline["slip_level"]),
-            transition_velocity_m_s=float(baseline.get("transition_velocity_m_s", 1e-4)),
-            transition_exponent=float(baseline.get("transition_exponent", 2.0)),
-            transition_tail=math.inf if tail is None else float(tail),
+            limit[keep] / breakaway[keep], limit[keep],
+            slip_level=float(baseline["slip_level"]), limit_follows_level=law, **level,
         )  # fmt: skip
         return RigidAxisModel(float(baseline["mass_kg"]), gms=gms)
     except (KeyError, TypeError, ValueError) as err:

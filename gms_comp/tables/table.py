@@ -6,7 +6,8 @@ carrying their units::
     {"format": "gms-comp-table", "format_version": 1, "gms_comp_version": "0.1.0",
      "units": {...}, "elements": N, "stiffness_N_per_m": [...], "limit_N": [...],
      "velocity_level": {"slip_level": 1.2, "transition_velocity_m_s": 1e-4,
-                        "transition_exponent": 2.0, "transition_tail": null},
+                        "transition_exponent": 2.0, "transition_tail": null,
+                        "limit_follows_level": false},
      "attraction_rate_per_s": null,            # null: infinite (Maxwell-slip)
      "viscous_Ns_per_m": 0.0,
      "source": {"config": "...", "sha256": "..."},
@@ -22,7 +23,8 @@ axis is at rest, what counts as a reversal; ``gms_comp.runtime.effects.path``): 
 observer must see it the same way, but causally: the diagnosis dates a reversal from its
 turning point, the observer once the retreat exceeds the deadband. Null or absent: the
 runtime's defaults.
-``velocity_level.transition_tail`` null or absent: infinite (the exponential approach).
+``velocity_level.transition_tail`` null or absent: infinite (the exponential approach);
+``velocity_level.limit_follows_level`` absent: false (the seed's law; :mod:`gms_comp.gms`).
 ``limit_N`` are the limits W_i at level s = 1 (at rest). A load family holds
 the elements at several ball loads (one row each) for interpolation.
 """
@@ -58,6 +60,8 @@ FORMAT_VERSION = 1
 # A finite velocity-level tail is written as version 2, so that a reader that does not
 # know the tail refuses the table rather than run it with the exponential approach.
 TAIL_FORMAT_VERSION = 2
+# ... and a limit that follows the level as version 3, for the same reason.
+LAW_FORMAT_VERSION = 3
 UNITS = {
     "position": "m",
     "velocity": "m/s",
@@ -161,7 +165,9 @@ def table_to_dict(table: GmsTable) -> dict[str, Any]:
     tail = None if p.transition_tail >= MAX_TRANSITION_TAIL else p.transition_tail
     return {
         "format": FORMAT,
-        "format_version": FORMAT_VERSION if tail is None else TAIL_FORMAT_VERSION,
+        "format_version": LAW_FORMAT_VERSION
+        if p.limit_follows_level
+        else (FORMAT_VERSION if tail is None else TAIL_FORMAT_VERSION),
         "gms_comp_version": table.version,
         "units": dict(UNITS),
         "elements": p.n_elements,
@@ -172,6 +178,7 @@ def table_to_dict(table: GmsTable) -> dict[str, Any]:
             "transition_velocity_m_s": p.transition_velocity_m_s,
             "transition_exponent": p.transition_exponent,
             "transition_tail": tail,
+            "limit_follows_level": p.limit_follows_level,
         },
         "attraction_rate_per_s": (
             None if math.isinf(p.attraction_rate_per_s) else p.attraction_rate_per_s
@@ -220,8 +227,8 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
     if doc.get("format") != FORMAT:
         raise r.error("format", f"must be {FORMAT!r}, got {doc.get('format')!r}")
     fv = r.get(doc, "format_version")
-    if fv not in (FORMAT_VERSION, TAIL_FORMAT_VERSION) or isinstance(fv, bool):
-        raise r.error("format_version", f"unknown version {fv!r} (this reader knows 1 and 2)")
+    if fv not in (FORMAT_VERSION, TAIL_FORMAT_VERSION, LAW_FORMAT_VERSION) or isinstance(fv, bool):
+        raise r.error("format_version", f"unknown version {fv!r} (this reader knows 1 to 3)")
     version = r.version(doc, "gms_comp_version")
     units = r.get(doc, "units")
     if units != UNITS:
@@ -237,6 +244,9 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
     level = r.get(doc, "velocity_level")
     rate = r.get(doc, "attraction_rate_per_s")
     tail = level.get("transition_tail") if isinstance(level, dict) else None
+    law = level.get("limit_follows_level", False) if isinstance(level, dict) else False
+    if not isinstance(law, bool):
+        raise r.error("velocity_level.limit_follows_level", f"must be true or false, got {law!r}")
     params = GmsParams(
         k,
         w,
@@ -254,6 +264,7 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
         transition_tail=math.inf
         if tail is None
         else r.number(level, "velocity_level.transition_tail", True, MAX_TRANSITION_TAIL),
+        limit_follows_level=law,
     )
     source = r.get(doc, "source")
     fidelity = r.get(doc, "fidelity")

@@ -1,15 +1,14 @@
 """Stage 2: the baseline model, calibrated on the training rows.
 
-The blind baseline is a free NNLS GMS that carries the seed's velocity dependence: a
-sliding level C_v >= 1 above the stick level, reached over a transition velocity v_t
-(../shared/spec/physics.md), fitted jointly with the element limits: for each (C_v, v_t)
-the limits are a non-negative least-squares fit, and (C_v, v_t) are searched on a
-bounded grid and refined by bounded coordinate steps; the elements the grid's fit keeps
-are then moved off the grid (free knots, :func:`refine_knots`) and (C_v, v_t) stepped
-again. A trace whose only departure from a GMS is C_v is therefore ``none``. Given a GMS
-table (from the user's bearing), its level, presliding scale and velocity dependence are
-calibrated instead (:mod:`.basis`), and the table is the baseline if its held-out RMS is
-within ``table_margin`` of the free GMS's.
+The blind baseline is a free NNLS GMS that carries the seed's velocity dependence
+(../shared/spec/physics.md): a sliding level C_v >= 1 above the stick level, reached over
+a transition velocity v_t, in either law of :data:`.slip_level.LAWS`, fitted jointly with
+the element limits (NNLS for each level; the level on a bounded grid, then bounded
+coordinate steps; the kept elements moved off the grid, :func:`refine_knots`, and the
+level stepped again). A trace whose only departure from a GMS is C_v is therefore
+``none``. Given a GMS table (the user's bearing), its level, presliding scale and velocity
+dependence are calibrated instead (:mod:`.basis`): it is the baseline if its held-out RMS
+is within ``table_margin`` of the free GMS's.
 """
 
 from __future__ import annotations
@@ -44,6 +43,7 @@ from gms_comp.measured.diagnosis.design import (
 from gms_comp.measured.diagnosis.prepare import Part, Prepared
 from gms_comp.measured.diagnosis.slip_level import (
     EXPONENT_RANGE,
+    LAWS,
     REFINE_STEPS,
     SLIP_LEVELS,
     TAILS,
@@ -142,6 +142,7 @@ class Baseline:
             "transition_velocity_m_s": self.gms.transition_velocity_m_s,
             "transition_exponent": self.gms.transition_exponent,
             "transition_tail": None if math.isinf(tail := self.gms.transition_tail) else tail,
+            "limit_follows_level": self.gms.limit_follows_level,
             "sliding_force_N": self.sliding_force_N,
             "presliding_m": self.presliding_m,
             "mass_kg": float(self.theta[self.n_gms]) if self.prepared.drive else 0.0,
@@ -197,9 +198,8 @@ def _fit(
 def fit_free(
     prepared: Prepared, breakaway_m: FloatArray, start: FreeBasis | None = None
 ) -> FreeBasis:
-    """The free basis whose slip level, transition velocity and transition shape fit
-    the training rows best, each trial's limits by non-negative least squares (a grid at
-    exponent 2 of either tail, then coordinate steps; or steps from ``start``'s).
+    """The free basis whose level (slip_level.Level) fits the training rows best, its
+    limits by NNLS (a grid at exponent 2, then coordinate steps; or steps from ``start``'s).
 
     A viscous term (c >= 0) and an offset are fitted beside them during the search and
     then dropped: the slip level takes the velocity dependence that saturates, a linear
@@ -211,18 +211,18 @@ def fit_free(
     cache: dict[Level, float] = {}
 
     def cost(level: Level) -> float:
-        key = (round(level[0], 6), round(level[1], 12), round(level[2], 6), level[3])
+        key = (round(level[0], 6), round(level[1], 12), round(level[2], 6), level[3], level[4])
         if key not in cache:
             cache[key] = _fit(prepared, FreeBasis(breakaway_m, *level), nuisance=True)[2]
         return cache[key]
 
     exponent = EXPONENT_RANGE[1]
     if start is None:
-        best = (cost(flat := (1.0, vt_range[1], exponent, math.inf)), flat)
-        for tail in TAILS:
+        best = (cost(flat := (1.0, vt_range[1], exponent, math.inf, False)), flat)
+        for tail, law in [(tail, law) for tail in TAILS for law in LAWS]:
             for cv in SLIP_LEVELS:
                 for vt in np.geomspace(*vt_range, TRANSITION_POINTS):
-                    level = (cv, float(vt), exponent, tail)
+                    level = (cv, float(vt), exponent, tail, law)
                     best = min(best, (cost(level), level))
         steps: tuple[tuple[float, float], ...] = REFINE_STEPS
     else:

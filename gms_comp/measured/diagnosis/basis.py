@@ -53,14 +53,15 @@ def breakaway_grid(kin: Kinematics, n_elements: int, resolution_m: float) -> Flo
 class FreeBasis:
     """Elements on a fixed grid of break-away displacements, sharing the slip level
     ``slip_level`` (C_v) reached over ``transition_velocity_m_s`` with the shape
-    ``transition_exponent`` and tail ``transition_tail`` (:class:`~gms_comp.gms.GmsParams`);
-    coefficients: the limits W_i."""
+    ``transition_exponent``, tail ``transition_tail`` and law ``limit_follows_level``
+    (:class:`~gms_comp.gms.GmsParams`); coefficients: the limits W_i."""
 
     breakaway_m: FloatArray
     slip_level: float = 1.0
     transition_velocity_m_s: float = 1e-4
     transition_exponent: float = 2.0
     transition_tail: float = math.inf
+    limit_follows_level: bool = False
 
     def columns(
         self, kin: Kinematics, spare: int = 0, order: Literal["C", "F"] = "C"
@@ -83,6 +84,7 @@ class FreeBasis:
             transition_velocity_m_s=self.transition_velocity_m_s,
             transition_exponent=self.transition_exponent,
             transition_tail=self.transition_tail,
+            limit_follows_level=self.limit_follows_level,
         )
 
 

@@ -56,18 +56,23 @@ EXPONENT_RANGE = (1.0, 2.0)
 # confident wrong answers for 5. Not searched until that is understood.
 RATIONAL_TAIL = 1.0
 TAILS = (math.inf,)
+# ... and its laws (GmsParams.limit_follows_level): the seed's (a slipping element
+# carries C_v W_i at once) and a play operator whose limit follows the level (reaching
+# C_v W_i takes (C_v - 1) W_i / k_i more travel); the grid is laid out for each.
+LAWS = (False, True)
 
 
-Level = tuple[float, float, float, float]  # C_v, v_t, exponent, tail
+Level = tuple[float, float, float, float, bool]  # C_v, v_t, exponent, tail, law
 
 
 def level_of(basis: FreeBasis) -> Level:
-    """The free basis's (C_v, v_t, exponent, tail)."""
+    """The free basis's (C_v, v_t, exponent, tail, law)."""
     return (
         basis.slip_level,
         basis.transition_velocity_m_s,
         basis.transition_exponent,
         basis.transition_tail,
+        basis.limit_follows_level,
     )
 
 
@@ -98,16 +103,16 @@ def slip_level_vertex(
     costs at C_v +- ``d_cv`` (within the step), whichever costs less. The cost is sharp in
     C_v: on an independent trace 1.08, 1.09, 1.10 cost 0.0288, 0.0268, 0.0277 N, and the
     steps of 0.02 stopped at 1.10 (truth 1.086)."""
-    cv, vt, ex, tail = best[1]
+    cv, vt, ex, tail, law = best[1]
     lo, hi = SLIP_LEVEL_RANGE
     if not lo + d_cv <= cv <= hi - d_cv:
         return best
-    c_lo, c_hi = (cost((cv + d, vt, ex, tail)) ** 2 for d in (-d_cv, d_cv))
+    c_lo, c_hi = (cost((cv + d, vt, ex, tail, law)) ** 2 for d in (-d_cv, d_cv))
     curvature = c_lo - 2.0 * best[0] ** 2 + c_hi
     if curvature <= 0.0:
         return best
     shift = float(np.clip(0.5 * d_cv * (c_lo - c_hi) / curvature, -d_cv, d_cv))
-    level = (cv + shift, vt, ex, tail)
+    level = (cv + shift, vt, ex, tail, law)
     return min(best, (cost(level), level))
 
 
@@ -121,14 +126,15 @@ def neighbours(
     level: Level, d_cv: float, factor: float, vt_range: tuple[float, float]
 ) -> list[Level]:
     """One coordinate step either way from (C_v, v_t, exponent), inside the bounds, and
-    the other tail."""
-    cv, vt, ex, tail = level
+    the other tails and laws."""
+    cv, vt, ex, tail, law = level
     lo, hi = SLIP_LEVEL_RANGE
     return (
-        [(min(max(cv + d, lo), hi), vt, ex, tail) for d in (-d_cv, d_cv)]
-        + [(cv, min(max(vt * f, vt_range[0]), vt_range[1]), ex, tail)
+        [(min(max(cv + d, lo), hi), vt, ex, tail, law) for d in (-d_cv, d_cv)]
+        + [(cv, min(max(vt * f, vt_range[0]), vt_range[1]), ex, tail, law)
            for f in (1 / factor, factor)]
-        + [(cv, vt, min(max(ex * f, EXPONENT_RANGE[0]), EXPONENT_RANGE[1]), tail)
+        + [(cv, vt, min(max(ex * f, EXPONENT_RANGE[0]), EXPONENT_RANGE[1]), tail, law)
            for f in (1 / factor, factor)]
-        + [(cv, vt, ex, other) for other in TAILS if other != tail]
+        + [(cv, vt, ex, other, law) for other in TAILS if other != tail]
+        + [(cv, vt, ex, tail, other) for other in LAWS if other != law]
     )  # fmt: skip

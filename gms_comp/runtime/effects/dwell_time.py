@@ -48,7 +48,7 @@ import numba
 import numpy as np
 
 from gms_comp.arrays import FloatArray
-from gms_comp.gms import GmsParams, _level
+from gms_comp.gms import _PLAY, GmsParams, _level
 from gms_comp.runtime.effects.base import Effect, Shape, duration
 from gms_comp.runtime.effects.path import REST_HOLD_S, Context
 
@@ -92,16 +92,17 @@ def _turned(move: float, start_x: float, x: float, direction: float) -> tuple[fl
 
 @numba.njit(cache=True, inline="always")
 def _rule(
-    fi: float, di: float, gi: float, ki: float, wi: float, dx: float, level: float
-) -> tuple[float, float, float]:
+    fi: float, di: float, gi: float, ki: float, wi: float, dx: float, level: float,
+    play: float,
+) -> tuple[float, float, float]:  # fmt: skip
     """One element's force, slip direction and hold after a move ``dx``: a Maxwell-slip
-    element (the GMS kernel's rule, rate-independent) that, while held since a start
-    (hold g >= 1), slips only beyond g times its limit at the current speed, and is the
-    kernel's element again (g = 0) once it has. Branch-free, so that a loop of it
-    vectorises."""
-    sliding = di != 0.0 and di * dx >= 0.0
-    stretch = (fi if di == 0.0 else di * wi) + ki * dx
-    threshold = wi * level * gi if gi >= 1.0 else wi
+    element (the GMS kernel's rule, rate-independent; ``play``: its limit follows the
+    level) that, while held since a start (hold g >= 1), slips only beyond g times its
+    limit at the current speed, and is the kernel's element again (g = 0) once it has.
+    Branch-free, so that a loop of it vectorises."""
+    sliding = di != 0.0 and di * dx >= 0.0 and play == 0.0
+    stretch = (fi if di == 0.0 or play != 0.0 else di * wi) + ki * dx
+    threshold = wi * level * gi if gi >= 1.0 else (wi * level if play != 0.0 else wi)
     up = stretch > threshold
     down = stretch < -threshold
     f = di * level * wi if sliding else (level * wi if up else (-level * wi if down else stretch))
@@ -129,6 +130,7 @@ def _raised_run(
     of 2 n, updated without branches (so that the compiler vectorises it), then summed
     in order."""
     n = k.size
+    play = scalars[_PLAY]
     tail = 6 * n
     # fresh local copies, the held elements then the raised ones: they alias nothing
     kk = np.concatenate((k, k))
@@ -158,7 +160,7 @@ def _raised_run(
             for i in range(n):
                 f[n + i], d[n + i], g[n + i] = f[i], d[i], g[i]
         for i in range(2 * n):
-            f[i], d[i], g[i] = _rule(f[i], d[i], g[i], kk[i], ww[i], dx, level)
+            f[i], d[i], g[i] = _rule(f[i], d[i], g[i], kk[i], ww[i], dx, level, play)
         extra = 0.0
         for i in range(n):
             extra += f[n + i] - f[i]
@@ -175,6 +177,7 @@ def _held_at_starts(
     """The held elements' forces at every start (a row each), from the virgin state:
     :func:`_raised_run`'s first n elements, which no shape changes."""
     n = k.size
+    play = scalars[_PLAY]
     starts = 0
     for j in range(1, x.size):
         if resting[j] == 0.0 and resting[j - 1] == 1.0 and dwell[j] >= REST_HOLD_S:
@@ -191,7 +194,7 @@ def _held_at_starts(
         dx = x[j] - x[j - 1] if j > 0 else 0.0
         level = _level(abs(v[j]), scalars)
         for i in range(n):
-            f[i], d[i], g[i] = _rule(f[i], d[i], g[i], k[i], w[i], dx, level)
+            f[i], d[i], g[i] = _rule(f[i], d[i], g[i], k[i], w[i], dx, level, play)
     return out
 
 
@@ -209,6 +212,7 @@ def _raised_windows(
     :func:`_held_at_starts`). On independent traces 2-4 % of the element steps are left,
     and a column costs 2-5 ms instead of 17-19 ms."""
     n = k.size
+    play = scalars[_PLAY]
     fh, dh, gh = np.zeros(n), np.zeros(n), np.zeros(n)
     fr, dr, gr = np.zeros(n), np.zeros(n), np.zeros(n)
     live = np.zeros(n, dtype=np.int64)  # the elements that differ, in order
@@ -245,8 +249,8 @@ def _raised_windows(
         extra = 0.0
         for q in range(m):
             i = live[q]
-            fh[i], dh[i], gh[i] = _rule(fh[i], dh[i], gh[i], k[i], w[i], dx, level)
-            fr[i], dr[i], gr[i] = _rule(fr[i], dr[i], gr[i], k[i], w[i], dx, level)
+            fh[i], dh[i], gh[i] = _rule(fh[i], dh[i], gh[i], k[i], w[i], dx, level, play)
+            fr[i], dr[i], gr[i] = _rule(fr[i], dr[i], gr[i], k[i], w[i], dx, level, play)
             extra += fr[i] - fh[i]
             if fr[i] == fh[i] and dr[i] == dh[i] and gr[i] == gh[i]:
                 is_live[i] = False
