@@ -155,7 +155,7 @@ class GmsParams:
         return np.sign(x) * (shape @ self.stiffness_N_per_m)
 
 
-def scaled(params: GmsParams, level: float, presliding: float, **fields: float) -> GmsParams:
+def scaled(params: GmsParams, level: float, presliding: float, **fields: Any) -> GmsParams:
     """``params`` with every W_i times ``level`` and every break-away W_i / k_i times
     ``presliding`` (and any scalar field replaced). A zero level keeps k_i > 0."""
     w = params.limit_N * level

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from indepgen import make_trace
 
+from gms_comp.gms import GmsParams, simulate
 from gms_comp.measured.diagnosis import baseline as baseline_module
 from gms_comp.measured.diagnosis import slip_level
 from gms_comp.measured.diagnosis.baseline import Baseline, fit_baseline
@@ -75,3 +76,27 @@ def test_the_search_can_take_the_rational_tail(monkeypatch: pytest.MonkeyPatch) 
     q = (speeds / v_t) ** 2
     truth = 1.0 + (gen.C_v - 1.0) * q / (1.0 + q)
     np.testing.assert_allclose(fitted.gms.level(speeds), truth, rtol=0.01)
+
+
+@pytest.mark.parametrize("law", [True, False])
+def test_the_search_takes_the_law_a_trace_was_made_with(law: bool) -> None:
+    """The independent generator's elements are springs clipped at s(v) W_i (its own
+    play operator): the baseline takes ``limit_follows_level``. The same path through the
+    seed's law (our kernel, six elements, the generator's C_v, v_t and noise) gives the
+    seed's law, its C_v within 1 % (seed 131: 1.2414 for 1.2418)."""
+    gen = make_trace("none", 131)
+    force = gen.force_N
+    if not law:
+        d = np.geomspace(1e-6, 3e-5, 6)
+        w = np.full(6, gen.sliding_force_N / gen.C_v / 6)
+        seed_law = GmsParams(w / d, w, slip_level=gen.C_v,
+                             transition_velocity_m_s=gen.transition_velocity_m_per_s)  # fmt: skip
+        v = np.gradient(gen.position_m, gen.time_s)
+        noise = np.random.default_rng(131).normal(0.0, gen.noise_N, v.size)
+        force = simulate(seed_law, gen.position_m, v)[0] + noise
+    cfg = DiagnosisConfig()
+    trace = Trace("indep", gen.time_s, gen.position_m, force)
+    fitted = fit_baseline(prepare(trace, "friction", None, cfg), cfg, None)
+    assert fitted.gms.limit_follows_level is law
+    if not law:
+        assert fitted.gms.slip_level == pytest.approx(gen.C_v, rel=0.01)

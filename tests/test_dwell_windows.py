@@ -33,12 +33,16 @@ def _path() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, x, np.gradient(x, t)
 
 
+@pytest.mark.parametrize("law", [False, True])
 @pytest.mark.parametrize(("tau", "reach"), [(1e-4, 1.5), (0.05, 0.3), (0.4, 0.03), (3.0, 0.05)])
-def test_a_dwell_column_from_rest_is_the_per_sample_kernels(tau: float, reach: float) -> None:
+def test_a_dwell_column_from_rest_is_the_per_sample_kernels(
+    tau: float, reach: float, law: bool
+) -> None:
     t, x, v = _path()
     delta = np.array([0.5e-6, 2e-6, 8e-6, 40e-6])  # the widest rarely slips
     w = np.array([1.0, 2.0, 1.5, 0.7])
-    gms = GmsParams(w / delta, w, slip_level=1.2, transition_velocity_m_s=2e-4)
+    gms = GmsParams(w / delta, w, slip_level=1.2, transition_velocity_m_s=2e-4,
+                    limit_follows_level=law)  # fmt: skip
     ctx = fx.Context.along(t, x, v, 0 * t, 0 * t, 1e-5, 5e-9, 7.5e-9)
     ctx = dataclasses.replace(ctx, gms=gms)
     assert np.count_nonzero((ctx.resting[1:] == 0.0) & (ctx.resting[:-1] == 1.0)) >= 10

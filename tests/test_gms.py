@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from indepfriction import velocity_level
+from indepfriction import play_operator, velocity_level
 
 from gms_comp.gms import GmsParams, GmsStream, simulate, simulate_elements
 from sim.kernels import truth_force, truth_pack
@@ -203,6 +203,52 @@ def test_every_compiled_path_sees_the_tail(tail: float) -> None:
         assert on_axis == pytest.approx(expected, rel=1e-12)
 
 
+def _wandering_path() -> tuple[np.ndarray, np.ndarray]:
+    """Strokes of 5-200 um at 0.02-5 mm/s either way with rests, at 2 kHz: the speed
+    crosses v_t in both directions many times, slipping elements speed up and slow down."""
+    rng = np.random.default_rng(11)
+    pieces, x0 = [], 0.0
+    for _ in range(30):
+        n = int(rng.integers(50, 600))
+        s = np.linspace(0.0, 1.0, n)
+        stroke = rng.choice([-1.0, 1.0]) * rng.uniform(5e-6, 2e-4)
+        pieces += [
+            x0 + stroke * (3 * s**2 - 2 * s**3),
+            np.full(int(rng.integers(0, 80)), x0 + stroke),
+        ]
+        x0 += stroke
+    x = np.concatenate(pieces)
+    return x, np.gradient(x, 5e-4)
+
+
+@pytest.mark.parametrize("c_v", [1.3, 1.0, 0.8])
+def test_a_limit_that_follows_the_level_is_the_independent_play_operator(c_v: float) -> None:
+    """``limit_follows_level``: every element is a spring clipped at s(v) W_i, the
+    independent generator's law (tests/indepfriction.play_operator), in the batch kernel,
+    the element columns, the stream and the simulated axis's truth step. With C_v = 1 it
+    is the seed's law; with C_v 1.3 the seed's law is another model (its slipping elements
+    jump to C_v W_i)."""
+    x, v = _wandering_path()
+    k, w = elements(5, 8)
+    p = GmsParams(k, w, slip_level=c_v, transition_velocity_m_s=3e-4, transition_tail=1.0,
+                  limit_follows_level=True)  # fmt: skip
+    level = velocity_level(np.abs(v), c_v, 3e-4)
+    expected = play_operator(np.diff(x, prepend=x[0]), k, w / k, level)
+    force = simulate(p, x, v)[0]
+    np.testing.assert_allclose(force, expected, rtol=1e-9, atol=1e-12 * w.sum())
+    np.testing.assert_allclose(simulate_elements(p, x, v).sum(axis=1), force, rtol=1e-12)
+    stream, truth = GmsStream(p), GmsStream(p)
+    pack = truth_pack(truth)
+    assert pack is not None
+    streamed = [stream.step(float(xi), float(vi)) for xi, vi in zip(x, v, strict=True)]
+    on_axis = [truth_force(pack, float(xi), float(vi)) for xi, vi in zip(x, v, strict=True)]
+    np.testing.assert_array_equal(streamed, force)
+    np.testing.assert_array_equal(on_axis, force)
+    seed_law = simulate(dataclasses.replace(p, limit_follows_level=False), x, v)[0]
+    gap = float(np.max(np.abs(seed_law - force)))
+    assert gap < 1e-9 * w.sum() if c_v == 1.0 else gap > 0.05 * w.sum()
+
+
 @pytest.mark.parametrize("attraction_per_s", [30.0, 300.0, 3000.0])
 def test_finite_attraction_relaxes_exponentially_in_time(attraction_per_s: float) -> None:
     """After a stop the slipping element is drawn back to C_v W at rate C / C_v."""
@@ -299,6 +345,8 @@ def test_element_forces_are_each_element_alone_and_sum_to_the_force() -> None:
         ({"viscous_Ns_per_m": -1.0}, "viscous_Ns_per_m"),
         ({"transition_tail": 0.0}, "transition_tail"),
         ({"transition_tail": math.nan}, "transition_tail"),
+        ({"limit_follows_level": 1}, "limit_follows_level"),
+        ({"limit_follows_level": True, "attraction_rate_per_s": 100.0}, "limit_follows_level"),
     ],
 )
 def test_bad_parameters_are_refused(kwargs: dict[str, object], field: str) -> None:

@@ -365,21 +365,30 @@ def test_diagnosis_of_emps_holds_the_benchmark_figures(capsys: pytest.CaptureFix
 
 def test_a_diagnose_json_s_baseline_keeps_its_velocity_level(tmp_path: Path) -> None:
     """The replayed baseline is the one the diagnosis fitted: its transition speed,
-    exponent and tail, not only C_v (an older JSON without them gets the defaults)."""
+    exponent, tail and law, not only C_v (an older JSON without them gets the defaults,
+    a null tail is the exponential, a law that is not a boolean is refused)."""
     baseline = {"breakaway_m": [1e-6, 1e-5], "limit_N": [2.0, 0.0], "slip_level": 1.2,
                 "transition_velocity_m_s": 3e-4, "transition_exponent": 1.5,
-                "transition_tail": 1.0, "mass_kg": 0.0}  # fmt: skip
+                "transition_tail": 1.0, "limit_follows_level": True, "mass_kg": 0.0}  # fmt: skip
     path = tmp_path / "diagnosis.json"
     path.write_text(json.dumps({"baseline": baseline}))
     gms = replay.load_model(path).axis.gms
     assert gms is not None
     assert (gms.slip_level, gms.transition_velocity_m_s) == (1.2, 3e-4)
     assert (gms.transition_exponent, gms.transition_tail) == (1.5, 1.0)
+    assert gms.limit_follows_level is True
     np.testing.assert_allclose(gms.limit_N, [2.0])
-    for key in ("transition_velocity_m_s", "transition_exponent", "transition_tail"):
+    path.write_text(json.dumps({"baseline": baseline | {"transition_tail": None}}))
+    null_tail = replay.load_model(path).axis.gms
+    assert null_tail is not None and null_tail.transition_tail == math.inf
+    path.write_text(json.dumps({"baseline": baseline | {"limit_follows_level": "yes"}}))
+    with pytest.raises(InputError, match="limit_follows_level"):
+        replay.load_model(path)
+    for key in ("transition_velocity_m_s", "transition_exponent", "transition_tail",
+                "limit_follows_level"):  # fmt: skip
         del baseline[key]
     path.write_text(json.dumps({"baseline": baseline}))
     old = replay.load_model(path).axis.gms
     assert old is not None
     assert (old.transition_velocity_m_s, old.transition_exponent) == (1e-4, 2.0)
-    assert old.transition_tail == math.inf
+    assert old.transition_tail == math.inf and old.limit_follows_level is False

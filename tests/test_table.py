@@ -123,6 +123,8 @@ def set_in(doc: dict[str, Any], dotted: str, value: Any) -> None:
         ("velocity_level.transition_tail", -1.0, "velocity_level.transition_tail"),
         ("velocity_level.transition_tail", "rational", "velocity_level.transition_tail"),
         ("velocity_level.transition_tail", 1e300, "velocity_level.transition_tail"),
+        ("velocity_level.limit_follows_level", "yes", "velocity_level.limit_follows_level"),
+        ("velocity_level.limit_follows_level", 1, "velocity_level.limit_follows_level"),
         ("fidelity.rms_rel", None, "fidelity.rms_rel"),
         ("source.sha256", "xyz", "source.sha256"),
         ("units.force", "kN", "units"),
@@ -172,6 +174,28 @@ def test_the_level_s_tail_round_trips_and_absent_is_exponential(
     assert read_table(path).params.transition_tail == tail
     del doc["velocity_level"]["transition_tail"]
     assert read_table(write_doc(tmp_path, doc)).params.transition_tail == math.inf
+
+
+def test_a_limit_that_follows_the_level_round_trips_as_version_3(tmp_path: Path) -> None:
+    """The law is written and read back; a table with it is version 3 (a reader of 1 and
+    2 refuses it rather than run the seed's law); without the key it is the seed's law;
+    a table with it and a finite attraction rate is refused (the law has no attraction)."""
+    table = make_table([1e6, 2e5], [0.1, 0.2])
+    law = dataclasses.replace(table.params, slip_level=1.2, limit_follows_level=True)
+    path = tmp_path / "t.json"
+    write_table(path, dataclasses.replace(table, params=law))
+    doc = json.loads(path.read_text())
+    assert doc["velocity_level"]["limit_follows_level"] is True
+    assert doc["format_version"] == 3
+    assert read_table(path).params.limit_follows_level is True
+    write_table(path, table)
+    assert json.loads(path.read_text())["format_version"] == 1
+    del doc["velocity_level"]["limit_follows_level"]
+    assert read_table(write_doc(tmp_path, doc)).params.limit_follows_level is False
+    doc["velocity_level"]["limit_follows_level"] = True
+    doc["attraction_rate_per_s"] = 100.0
+    with pytest.raises(TableError, match="limit_follows_level"):
+        read_table(write_doc(tmp_path, doc))
 
 
 def test_missing_key_is_named(tmp_path: Path) -> None:

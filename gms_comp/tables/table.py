@@ -245,8 +245,9 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
     rate = r.get(doc, "attraction_rate_per_s")
     tail = level.get("transition_tail") if isinstance(level, dict) else None
     law = level.get("limit_follows_level", False) if isinstance(level, dict) else False
-    if not isinstance(law, bool):
-        raise r.error("velocity_level.limit_follows_level", f"must be true or false, got {law!r}")
+    if not isinstance(law, bool) or (law and rate is not None):
+        why = "must be true or false" if not isinstance(law, bool) else "needs a null attraction"
+        raise r.error("velocity_level.limit_follows_level", f"{why}, got {law!r}")
     params = GmsParams(
         k,
         w,

@@ -175,7 +175,9 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
     lines = [
         f"diagnosis of {doc['trace']} ({samples} samples, {kind} force), {doc['seconds']:.1f} s",
         f"baseline: {b['model'].replace('_', ' ')}, sliding force {b['sliding_force_N']:.4g} N, "
-        f"slip level C_v {b['slip_level']:.3g}, held-out RMS {doc['baseline_rms_N']:.4g} N "
+        f"slip level C_v {b['slip_level']:.3g}"
+        f"{' (the stick limit follows it)' if b.get('limit_follows_level') else ''}, "
+        f"held-out RMS {doc['baseline_rms_N']:.4g} N "
         f"(noise {doc['noise_rms_N']:.3g} N)",
     ]
     if b.get("position") == "encoder counts read as motion":
