@@ -106,13 +106,14 @@ class GmsParams:
             and self.transition_exponent > 0,
             "attraction_rate_per_s": self.attraction_rate_per_s > 0,  # inf allowed
             "transition_tail": self.transition_tail > 0,  # inf allowed
-            "limit_follows_level": isinstance(self.limit_follows_level, bool)
-            and not (self.limit_follows_level and math.isfinite(self.attraction_rate_per_s)),
+            "limit_follows_level": isinstance(self.limit_follows_level, bool),
             "viscous_Ns_per_m": finite(self.viscous_Ns_per_m) and self.viscous_Ns_per_m >= 0,
         }
         for name, ok in checks.items():
             if not ok:
                 raise ValueError(f"GmsParams.{name} is out of range: {getattr(self, name)!r}")
+        if self.limit_follows_level and math.isfinite(self.attraction_rate_per_s):
+            raise ValueError("GmsParams.limit_follows_level has no attraction_rate_per_s")
         object.__setattr__(self, "stiffness_N_per_m", k)
         object.__setattr__(self, "limit_N", w)
 
@@ -145,13 +146,13 @@ class GmsParams:
         return self.slip_level + (1.0 - self.slip_level) * approach
 
     def virgin_curve(self, displacement_m: ArrayLike, level: float = 1.0) -> FloatArray:
-        """Force after a monotone displacement from the virgin state at a fixed level.
-
-        F(x) = sign(x) sum_i phi(|x|, W_i / k_i) k_i with the element shape
-        :func:`element_shape` (no viscous part).
-        """
+        """Force after a monotone displacement from the virgin state at a fixed level (no
+        viscous part): sign(x) sum_i k_i phi_i(|x|), phi_i(u) = u up to d_i = W_i / k_i, then
+        level d_i (the seed's law) or min(u, level d_i) (``limit_follows_level``)."""
         x = np.asarray(displacement_m, dtype=float)
-        shape = element_shape(np.abs(x), self.limit_N / self.stiffness_N_per_m, level)
+        u, d = np.abs(x)[:, None], (self.limit_N / self.stiffness_N_per_m)[None, :]
+        seed = np.where(u <= d, u, level * d)
+        shape = np.minimum(u, level * d) if self.limit_follows_level else seed
         return np.sign(x) * (shape @ self.stiffness_N_per_m)
 
 
@@ -161,17 +162,6 @@ def scaled(params: GmsParams, level: float, presliding: float, **fields: Any) ->
     w = params.limit_N * level
     k = params.stiffness_N_per_m * (max(level, 1e-300) / presliding)
     return dataclasses.replace(params, stiffness_N_per_m=k, limit_N=w, **fields)
-
-
-def element_shape(displacement_m: FloatArray, breakpoint_m: FloatArray, level: float) -> FloatArray:
-    """Virgin force per unit stiffness, phi(x, Delta) = x for x <= Delta, else level Delta.
-
-    Shape (len(displacement_m), len(breakpoint_m)); the virgin curve is linear in
-    the stiffnesses, which is what the reduction's least squares relies on.
-    """
-    x = np.asarray(displacement_m, dtype=float)[:, None]
-    b = np.asarray(breakpoint_m, dtype=float)[None, :]
-    return np.where(x <= b, x, level * b)
 
 
 def _frozen_vector(values: ArrayLike) -> FloatArray:

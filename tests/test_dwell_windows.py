@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from gms_comp.gms import GmsParams
+from gms_comp.gms import GmsParams, simulate_elements
 from gms_comp.runtime import effects as fx
 from gms_comp.runtime.effects import dwell_time
 
@@ -57,3 +57,31 @@ def test_a_dwell_column_from_rest_is_the_per_sample_kernels(
         column = fx.DwellTime.basis(ctx, shape)[:, 0]
         np.testing.assert_array_equal(column, expected)
     assert dwell_time.HELD_KEY in ctx.derived
+
+
+def test_under_the_play_law_the_held_elements_are_the_gms_kernel_s() -> None:
+    """With the limit following the level, an element held since a start (it slips at
+    level W) is the GMS kernel's play element: the held forces kept at every start are
+    the kernel's element forces (``simulate_elements``) just before it. The path tells
+    the laws apart: the seed law's held forces are not the play kernel's (C_v 1.2)."""
+    t, x, v = _path()
+    delta = np.array([0.5e-6, 2e-6, 8e-6, 40e-6])
+    w = np.array([1.0, 2.0, 1.5, 0.7])
+    for law in (True, False):
+        gms = GmsParams(w / delta, w, slip_level=1.2, transition_velocity_m_s=2e-4,
+                        limit_follows_level=law)  # fmt: skip
+        ctx = dataclasses.replace(fx.Context.along(t, x, v, 0 * t, 0 * t, 1e-5, 5e-9, 7.5e-9),
+                                  gms=gms)  # fmt: skip
+        raised = dwell_time.RaisedLimits(gms, 0.1, 0.3)
+        held = raised.held_at_starts(ctx)
+        resting, dwell = ctx.resting, ctx.dwell_s
+        starts = [j for j in range(1, x.size) if resting[j] == 0.0 and resting[j - 1] == 1.0
+                  and dwell[j] >= dwell_time.REST_HOLD_S]  # fmt: skip
+        assert len(starts) == held.shape[0] >= 10
+        sub = GmsParams(raised.k, raised.w, slip_level=1.2, transition_velocity_m_s=2e-4,
+                        limit_follows_level=True)  # fmt: skip
+        kernel = simulate_elements(sub, x, v)[np.array(starts) - 1]
+        if law:
+            np.testing.assert_allclose(held, kernel, rtol=1e-9, atol=1e-12)
+        else:
+            assert np.max(np.abs(held - kernel)) > 1e-3  # N (5.8e-3 on this path)

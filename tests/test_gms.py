@@ -244,6 +244,11 @@ def test_a_limit_that_follows_the_level_is_the_independent_play_operator(c_v: fl
     on_axis = [truth_force(pack, float(xi), float(vi)) for xi, vi in zip(x, v, strict=True)]
     np.testing.assert_array_equal(streamed, force)
     np.testing.assert_array_equal(on_axis, force)
+    # the virgin curve at a fixed level: each element clipped at level W_i
+    ramp = np.linspace(0.0, 60e-6, 301)
+    step, held = np.diff(ramp, prepend=0.0), np.full(ramp.size, c_v)
+    np.testing.assert_allclose(p.virgin_curve(ramp, c_v), play_operator(step, k, w / k, held),
+                               rtol=1e-12, atol=1e-15)  # fmt: skip
     seed_law = simulate(dataclasses.replace(p, limit_follows_level=False), x, v)[0]
     gap = float(np.max(np.abs(seed_law - force)))
     assert gap < 1e-9 * w.sum() if c_v == 1.0 else gap > 0.05 * w.sum()

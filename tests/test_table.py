@@ -188,6 +188,10 @@ def test_a_limit_that_follows_the_level_round_trips_as_version_3(tmp_path: Path)
     assert doc["velocity_level"]["limit_follows_level"] is True
     assert doc["format_version"] == 3
     assert read_table(path).params.limit_follows_level is True
+    tailed = dataclasses.replace(law, transition_tail=1.0)
+    write_table(path, dataclasses.replace(table, params=tailed))
+    assert json.loads(path.read_text())["format_version"] == 3
+    assert read_table(path).params.transition_tail == 1.0
     write_table(path, table)
     assert json.loads(path.read_text())["format_version"] == 1
     del doc["velocity_level"]["limit_follows_level"]

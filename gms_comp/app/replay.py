@@ -242,8 +242,8 @@ def baseline_axis_model(baseline: Mapping[str, Any], where: str) -> RigidAxisMod
         level = {
             key: float(baseline[key])
             for key in ("transition_velocity_m_s", "transition_exponent", "transition_tail")
-            if baseline.get(key) is not None  # absent or null (an infinite tail): the default
-        }
+            if key in baseline and (key != "transition_tail" or baseline[key] is not None)
+        }  # absent: the default; a null tail is the infinite one
         law = baseline.get("limit_follows_level", False)
         if not isinstance(law, bool):
             raise TypeError(f"limit_follows_level must be true or false, got {law!r}")

@@ -3,7 +3,7 @@
 The GMS force along any path is linear in the stiffnesses once the element
 breakpoints Delta_i = W_i / k_i and the slip level are fixed: element i
 contributes k_i g(Delta_i, path), the force of a unit-stiffness element (its
-virgin shape is :func:`gms_comp.gms.element_shape`). The fit works on the
+virgin shape is :func:`element_shape`). The fit works on the
 ball model's virgin curve together with its force along a training path
 (stops and reversals of many amplitudes, which the virgin curve alone does not
 show):
@@ -45,7 +45,7 @@ from tqdm import tqdm
 from gms_comp.arrays import FloatArray
 from gms_comp.config import config_hash, in_range, parse_section, read_toml
 from gms_comp.errors import ConfigError, InputError
-from gms_comp.gms import GmsParams, element_shape, simulate, simulate_elements
+from gms_comp.gms import GmsParams, simulate, simulate_elements
 from gms_comp.physics.config import BallConfig
 from gms_comp.physics.contact import contact_problem, hertz_contact
 from gms_comp.physics.profiles import seed_fig7_profile
@@ -63,6 +63,17 @@ _STIFFNESS_RANGE = 1e8
 # Relative steps of the finite differences in the Jacobian (log breakpoint, slip level).
 _LOG_STEP = 1e-4
 _LEVEL_STEP = 1e-4
+
+
+def element_shape(displacement_m: FloatArray, breakpoint_m: FloatArray, level: float) -> FloatArray:
+    """Virgin force per unit stiffness, phi(x, Delta) = x for x <= Delta, else level Delta.
+
+    Shape (len(displacement_m), len(breakpoint_m)); the virgin curve is linear in
+    the stiffnesses, which is what the reduction's least squares relies on.
+    """
+    x = np.asarray(displacement_m, dtype=float)[:, None]
+    b = np.asarray(breakpoint_m, dtype=float)[None, :]
+    return np.where(x <= b, x, level * b)
 
 
 @dataclass(frozen=True)

@@ -208,9 +208,16 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
             figures = ", ".join(parameter_text(k, v) for k, v in e["in_context"].items())
             lines.append(f"        along this trace: {figures}")
     level = doc.get("extended_slip_level", b["slip_level"])
-    if doc["effects"] and abs(level - b["slip_level"]) > 0.005:
+    base_law = b.get("limit_follows_level", False)
+    law = doc.get("extended_limit_follows_level", base_law)
+    if doc["effects"] and (abs(level - b["slip_level"]) > 0.005 or law != base_law):
+        follows = (
+            f", its stick limit {'following' if law else 'not following'} it"
+            if law != base_law
+            else ""
+        )
         lines.append(
-            f"  with the slip level C_v {level:.3g} (the GMS alone: {b['slip_level']:.3g})"
+            f"  with the slip level C_v {level:.3g}{follows} (the GMS alone: {b['slip_level']:.3g})"
         )
     for caveat in doc.get("caveats", ()):
         lines.append(f"caveat: {caveat['text']}")

@@ -72,6 +72,7 @@ class Diagnosis:
             "baseline_rms_N": self.baseline_rms_N,
             "extended_rms_N": self.extended_rms_N,
             "extended_slip_level": float(self.gms.slip_level),
+            "extended_limit_follows_level": self.gms.limit_follows_level,
             "gain": self.gain,
             "noise_rms_N": self.noise_rms_N,
             "baseline": self.baseline,
