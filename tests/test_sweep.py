@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from pathlib import Path
@@ -14,7 +15,7 @@ from gms_comp.app.scaleout import dask_client, run_jobs
 from gms_comp.app.sweep import load_family, load_sweep, run_sweep
 from gms_comp.config import default_config_path
 from gms_comp.errors import ConfigError, TableError
-from gms_comp.tables.table import read_table
+from gms_comp.tables.table import read_table, write_table
 
 LOADS = "[25.0, 50.0]"
 
@@ -105,6 +106,13 @@ def test_family_interpolates_between_loads_and_refuses_outside(tmp_path: Path) -
     assert hi.limit_N.sum() > lo.limit_N.sum()
     with pytest.raises(TableError, match="outside"):
         family.table_at({"stand.ball_loads_N": 80.0})
+    # a point whose elements follow another law is not blended with its neighbour
+    point = sorted((tmp_path / "fam" / "points").glob("*.json"))[0]
+    table = read_table(point)
+    law = dataclasses.replace(table.params, limit_follows_level=True)
+    write_table(point, dataclasses.replace(table, params=law))
+    with pytest.raises(TableError, match="law"):
+        load_family(tmp_path / "fam").table_at({"stand.ball_loads_N": 37.5})
 
 
 def test_local_cluster_gives_the_serial_result(tmp_path: Path) -> None:

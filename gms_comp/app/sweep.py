@@ -309,6 +309,9 @@ class TableFamily:
             if index not in self.tables:
                 raise TableError(f"{self.path}: grid point {index} has no valid table")
             corners.append((weight, self.tables[index]))
+        laws = {t.params.limit_follows_level for _, t in corners}
+        if len(laws) > 1:  # a law is not blended
+            raise TableError(f"{self.path}: the grid points around {dict(values)} differ in law")
         return _blend(corners)
 
 
