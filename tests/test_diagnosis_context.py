@@ -19,7 +19,7 @@ from indepgen import baseline, make_trace
 
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.motion import kinematics
-from gms_comp.measured.diagnosis.prepare import held_third, prepare, top_blocks
+from gms_comp.measured.diagnosis.prepare import held_third, prepare, top_blocks, top_rows_held
 from gms_comp.measured.traces import Trace
 from gms_comp.runtime import effects as fx
 from gms_comp.runtime.effects.path import REST_HOLD_S
@@ -170,6 +170,37 @@ def test_a_held_block_with_the_only_top_speeds_is_trained_on() -> None:
     np.testing.assert_array_equal(moved, block == 4)
     speed[51] = 0.041  # block 5 (training) reaches 0.8 x the top
     assert not np.any(top_blocks(block, held, speed))
+
+
+def test_fast_rows_only_in_training_are_split_in_time() -> None:
+    """Blocks of 10 rows, the second third held; every row above a fifth of the top speed
+    in training block 3 (rows 32-37): the later half of them, from the median row to the
+    block's end, is held out; if that half holds every training row at 0.8 x the top, the
+    earlier half from the block's start is held out instead; once a held row reaches a
+    fifth, nothing moves."""
+    block = np.repeat(np.arange(9), 10)
+    held = block % 3 == 1
+    speed = np.full(block.size, 0.001)
+    speed[32:38] = [0.01, 0.03, 0.05, 0.05, 0.03, 0.01]
+    moved = top_rows_held(block, held, speed)
+    np.testing.assert_array_equal(np.flatnonzero(moved), np.arange(35, 40))
+    speed[34] = 0.03  # the top (0.05) only in the later half
+    np.testing.assert_array_equal(np.flatnonzero(top_rows_held(block, held, speed)),
+                                  np.arange(30, 35))  # fmt: skip
+    speed[14] = 0.011  # a held row (block 1) above a fifth of the top
+    assert not np.any(top_rows_held(block, held, speed))
+
+
+def test_seed_159_holds_out_half_its_fast_moves() -> None:
+    """Seed 159 of the independent generator: every row above a fifth of the top speed is
+    in one block; half of them are held out and the training rows keep the top speed."""
+    gen = make_trace("none", 159)
+    part = prepare(Trace("indep", gen.time_s, gen.position_m, gen.force_N), "friction",
+                   None, DiagnosisConfig()).main  # fmt: skip
+    speed = np.abs(part.kin.velocity_m_s)
+    fast = speed >= 0.2 * float(np.max(speed))
+    assert 0.3 <= np.sum(fast & part.held) / np.sum(fast) <= 0.7
+    assert float(np.max(speed[part.train])) >= 0.8 * float(np.max(speed))
 
 
 def test_the_held_third_follows_the_starts() -> None:
