@@ -315,6 +315,22 @@ def test_stribeck_form_scales_the_gms_force() -> None:
     np.testing.assert_allclose(out, 10.0 * (1 + 0.5 * math.exp(-1.0)))
 
 
+def test_a_direction_asymmetry_is_told_apart_at_speeds_reached_both_ways() -> None:
+    """Forward up to 10 mm/s, back up to 2 mm/s: only rows at 2 mm/s or less (either way)
+    can tell half the speed from a level of the speed; a trace that never moves back has
+    none but its standstills; the other effects do not restrict the rows."""
+    t = np.linspace(0.0, 1.0, 1001)
+    v = np.where(t < 0.5, 10e-3 * np.sin(2 * np.pi * t), 2e-3 * np.sin(2 * np.pi * t))
+    ctx = fx.Context.along(t, 0 * t, v, 0 * t, 0 * t)
+    apart = fx.DirectionAsymmetry.told_apart(ctx)
+    np.testing.assert_array_equal(apart, np.abs(v) <= np.max(-v))
+    assert 0 < np.sum(apart & (v > 0)) < np.sum(v > 0)
+    assert np.all(apart[v < 0])
+    forward = fx.Context.along(t, 0 * t, np.clip(v, 0.0, None), 0 * t, 0 * t)
+    np.testing.assert_array_equal(fx.DirectionAsymmetry.told_apart(forward), v <= 0.0)
+    assert fx.Stribeck.told_apart(ctx) is None and fx.Offset.told_apart(ctx) is None
+
+
 def test_drift_limits() -> None:
     t = np.linspace(0, 100, 1000)
     f = np.full_like(t, 4.0)

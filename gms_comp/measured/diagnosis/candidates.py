@@ -235,6 +235,18 @@ class Scorer:
             events.append(runs(where_acting(e.values), gap))
         return self.gram.left_out(extra, events, LEFT_OUT_FOLDS)
 
+    def told_apart(self, opt: Option) -> BoolArray | None:
+        """The held-out rows (every part's, in order) whose motion can tell ``opt``'s
+        effect from the others (:meth:`~gms_comp.runtime.effects.base.Effect.told_apart`),
+        or None: every row."""
+        masks = [opt.effect.told_apart(fp.ctx) for fp in self.parts]
+        if all(m is None for m in masks):
+            return None
+        return np.concatenate([
+            (np.ones(fp.part.held.size, dtype=bool) if m is None else m)[fp.part.held]
+            for m, fp in zip(masks, self.parts, strict=True)
+        ])  # fmt: skip
+
     def change(self, trial: Trial) -> FloatArray:
         """How much ``trial`` changes the model force on the main part."""
         if trial.option.is_filter:

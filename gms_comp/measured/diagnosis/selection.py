@@ -8,7 +8,9 @@ smaller but significant step (t statistic over held-out chunks); an effect that 
 few samples (a dwell gain at break-aways) is also judged where it acts, at every event by
 a fit that did not see it (the held-out rows may hold none of its events); and in any case
 it must change the model force somewhere by ``min_effect_fraction`` of the sliding force
-(on clean traces tiny stray terms always lower the held-out error a little). In the
+(on clean traces tiny stray terms always lower the held-out error a little). An effect
+that names the rows where the motion tells it from others (``Effect.told_apart``: a
+direction asymmetry, at speeds the trace reaches both ways) must lower it there too. In the
 first ``FREE_LEVEL_ROUNDS`` rounds Stribeck is also scored with the baseline's slip
 level free (:mod:`.level_free`); where that wins, the selection goes on from that level.
 Every search here is bounded: rounds by ``max_effects``, grids by the catalogue, local search
@@ -128,6 +130,10 @@ def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: floa
             rms(local1) <= (1.0 - cfg.local_margin) * rms(local0)
             and significance(local0, local1) >= cfg.local_significance_t
         )
+    apart = scorer.told_apart(trial.option)
+    if worth and apart is not None:
+        # and where the motion tells it from the effects it could stand in for
+        worth = bool(np.any(apart)) and lowers(cfg, held0[apart], trial.held_residual_N[apart])
     if not worth or not consistent(scorer, trial):
         return False
     if not trial.option.is_filter:

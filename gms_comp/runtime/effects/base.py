@@ -29,7 +29,7 @@ import numba
 import numpy as np
 from scipy import signal
 
-from gms_comp.arrays import FloatArray
+from gms_comp.arrays import BoolArray, FloatArray
 from gms_comp.gms import GmsParams
 from gms_comp.runtime.effects.path import Context
 
@@ -95,6 +95,12 @@ class Effect:
         depends on its own size, as a dwell gain's windows do on the gain); ``shape``
         itself where size and shape are independent."""
         return dict(shape)
+
+    @classmethod
+    def told_apart(cls, ctx: Context) -> BoolArray | None:
+        """The rows along ``ctx`` whose motion can tell this effect from the others it
+        could stand in for, where the diagnosis must see its gain (None: every row)."""
+        return None
 
     def shape(self) -> Shape:
         """The shape parameters of this effect."""
