@@ -33,10 +33,11 @@ def _path() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, x, np.gradient(x, t)
 
 
+@pytest.mark.parametrize("keep", [0.0, 1.0])
 @pytest.mark.parametrize("law", [False, True])
 @pytest.mark.parametrize(("tau", "reach"), [(1e-4, 1.5), (0.05, 0.3), (0.4, 0.03), (3.0, 0.05)])
 def test_a_dwell_column_from_rest_is_the_per_sample_kernels(
-    tau: float, reach: float, law: bool
+    tau: float, reach: float, law: bool, keep: float
 ) -> None:
     t, x, v = _path()
     delta = np.array([0.5e-6, 2e-6, 8e-6, 40e-6])  # the widest rarely slips
@@ -46,17 +47,36 @@ def test_a_dwell_column_from_rest_is_the_per_sample_kernels(
     ctx = fx.Context.along(t, x, v, 0 * t, 0 * t, 1e-5, 5e-9, 7.5e-9)
     ctx = dataclasses.replace(ctx, gms=gms)
     assert np.count_nonzero((ctx.resting[1:] == 0.0) & (ctx.resting[:-1] == 1.0)) >= 10
-    stream = dwell_time.RaisedLimits(gms, tau, reach, 1 / reach)  # the column's scale
+    stream = dwell_time.RaisedLimits(gms, tau, reach, 1 / reach, keep)  # the column's scale
     expected = np.array([
         stream.step(xi, vi, ri, di, ui)
         for xi, vi, ri, di, ui in zip(x, v, ctx.resting, ctx.dwell_s, ctx.direction, strict=True)
     ])  # fmt: skip
     assert np.count_nonzero(expected) > 20
-    shape = {"tau_s": tau, "reach": reach}
+    shape = {"tau_s": tau, "reach": reach, "kept_through_turns": keep}
     for _ in range(2):  # the second from the held elements kept in the context
         column = fx.DwellTime.basis(ctx, shape)[:, 0]
         np.testing.assert_array_equal(column, expected)
     assert dwell_time.HELD_KEY in ctx.derived
+
+
+def test_a_gain_kept_through_turns_outlasts_the_turn_s() -> None:
+    """On the path's strokes and jiggles the widest element often turns back before it
+    slips: the spec's form keeps its raised force on after the turn where the other
+    drops it, so the kept column is nonzero on more rows, and equal to it up to the
+    first turn after the first start."""
+    t, x, v = _path()
+    delta = np.array([0.5e-6, 2e-6, 8e-6, 40e-6])
+    w = np.array([1.0, 2.0, 1.5, 0.7])
+    ctx = dataclasses.replace(fx.Context.along(t, x, v, 0 * t, 0 * t, 1e-5, 5e-9, 7.5e-9),
+                              gms=GmsParams(w / delta, w))  # fmt: skip
+    cols = [fx.DwellTime.basis(ctx, {"tau_s": 0.1, "reach": 0.3, "kept_through_turns": k})[:, 0]
+            for k in (0.0, 1.0)]  # fmt: skip
+    turned, kept = (np.count_nonzero(c) for c in cols)
+    assert kept > 1.5 * turned > 0
+    first = int(np.flatnonzero(cols[0] != cols[1])[0])
+    assert np.any(cols[0][:first] != 0.0)
+    assert cols[0][first] == 0.0 != cols[1][first]  # dropped at the turn, kept on
 
 
 def test_under_the_play_law_the_held_elements_are_the_gms_kernel_s() -> None:

@@ -390,6 +390,17 @@ def test_dict_round_trip_and_bad_entries() -> None:
         fx.effect_from_dict({"effect": "offset", "parameters": {"F0": 1.0}})
     with pytest.raises(ValueError, match="finite number"):
         fx.effect_from_dict({"effect": "offset", "parameters": {"offset_N": math.nan}})
+    # a dwell gain's form at a turn: written, optional on reading (older tables: 0), 0 or 1
+    kept = fx.DwellTime(0.1, 1.0, 0.12, 1.0)
+    assert fx.effect_to_dict(kept)["parameters"]["kept_through_turns"] == 1.0
+    assert fx.effect_from_dict(fx.effect_to_dict(kept)) == kept
+    older = {"effect": "dwell_time", "parameters": {"gamma": 0.1, "tau_s": 1.0, "reach": 0.12}}
+    assert fx.effect_from_dict(older) == fx.DwellTime(0.1, 1.0, 0.12, 0.0)
+    older["parameters"]["kept_through_turns"] = 0.5
+    with pytest.raises(ValueError, match="kept_through_turns must be 0 or 1, got 0.5"):
+        fx.effect_from_dict(older)
+    with pytest.raises(ValueError, match=r"optional: \['kept_through_turns'\]"):
+        fx.effect_from_dict({"effect": "dwell_time", "parameters": {"gamma": 0.1}})
 
 
 def test_catalogue_names_match_spec() -> None:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import fields
+from dataclasses import MISSING, fields
 from typing import Any
 
 from gms_comp.arrays import FloatArray
@@ -79,9 +79,12 @@ def effect_from_dict(entry: Mapping[str, Any]) -> Effect:
     if not isinstance(params, Mapping):
         raise ExtensionError(f"table extension {name}: 'parameters' must be a table")
     wanted = {f.name for f in fields(cls)}
-    if set(params) != wanted:
+    required = {f.name for f in fields(cls) if f.default is MISSING}
+    if not required <= set(params) <= wanted:
         raise ExtensionError(
-            f"table extension {name}: parameters must be {sorted(wanted)}, got {sorted(params)}"
+            f"table extension {name}: parameters must be {sorted(required)}"
+            + (f" (optional: {sorted(wanted - required)})" if wanted - required else "")
+            + f", got {sorted(params)}"
         )
     values: dict[str, Any] = {}
     for key, value in params.items():
@@ -92,7 +95,10 @@ def effect_from_dict(entry: Mapping[str, Any]) -> Effect:
         ):
             raise ExtensionError(f"table extension {name}: parameter {key} must be a finite number")
         values[key] = int(value) if key == "order" else float(value)
-    return cls(**values)
+    try:
+        return cls(**values)
+    except ValueError as exc:
+        raise ExtensionError(f"table extension {name}: {exc}") from None
 
 
 def effect_to_dict(effect: Effect) -> dict[str, Any]:

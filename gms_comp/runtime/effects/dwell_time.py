@@ -7,29 +7,21 @@ current speed (level(v) W_i) times g = 1 + G ln(1 + t_d/tau) before it slips to 
 sliding force; from then on it is the plain element again. The effect is that force less
 the same elements held to g = 1 (the climb from the stick to the sliding level at a start
 is the baseline's, not the dwell's): it follows each element's break-away, rising with the
-stiffness of the elements not yet slipped and gone once the widest one slips. (A fixed
-ramp in the distance since the start, the form before, could not follow a start faster
-than the slip level's transition: on an independent generator's traces it was named 0
-times in 10 with break-away peaks of 10-30 % of the level.)
+stiffness of the elements not yet slipped and gone once the widest one slips. Only rests
+of at least the path's ``REST_HOLD_S`` raise the limits (a slow move below the standstill
+speed ends in 'rests' of a sample or two: on dwell_time-106 of an independent generator
+they were half the rest ends, set tau's lower bound to 1e-4 s and raised limits where
+the truth has no standstill).
 
-Only rests of at least the path's ``REST_HOLD_S`` raise the limits (a slow move below the
-standstill speed ends in 'rests' of a sample or two: on dwell_time-106 of an independent
-generator they were half the rest ends, set tau's lower bound to 1e-4 s and raised
-limits where the truth has no standstill). Where the move turns back before an element
-has slipped, its gain is lost: a raised element that kept its stretch through micrometre
-moves after a start (a constant over seconds of presliding) depends on where exactly
-each fitted break-away lies, which the baseline does not fit to that precision. On
-dwell_time-117 that memory was most of the column's energy where the truth's was 0; the
-column at the true shape correlated 0.55 with the truth's dwell force, 0.73 on the
-starts' first moves, and its local drop (:func:`..selection.admissible`) was 4 %, 31 %
-without it. Keeping the gain through a turn until the element slips (the catalogue's
-form) was tried again with the baseline's fitted break-aways, and reverted: it found the
-dwell of the independent dwell_time-148 (5.4 s of 2.6 um presliding after a start
-carried most of the truth's dwell force; the column's correlation with it 0.21 -> 0.96),
-but on the project's generator (whose truth, this effect, then kept the gain too) the
-gain after the median dwell came out 15-37 % low on seeds 1-5, against 0-17 % with the
-turn rule; over 30 independent dwell traces, 26 named either way, 26 in tolerance
-against 25 with the turn rule.
+Where the move turns back before an element has slipped, the spec's form keeps its gain
+until it slips (``kept_through_turns`` 1); the other (0) loses it at the turn. A gain
+kept through micrometre moves after a start holds a constant over seconds of presliding
+that depends on where exactly each fitted break-away lies: on the project's own generator
+(whose truth is this effect) the gain after the median dwell came out 15-37 % low on
+seeds 1-5 with the kept form alone, 2-16 % with the turn's. Where the truth keeps it
+(dwell_time-148, -165, -169 of the independent generator: 91-97 % of its dwell force
+later than 0.3 s after a start), the turn's form missed it or sized it 42-49 % off. The
+diagnosis fits both (a discrete shape key) and keeps the better.
 
 The width of each element's window grows with g, its height too; the design column is
 the extra force at a gain ``reach`` (G) divided by G, so that its coefficient ``gamma``
@@ -113,7 +105,7 @@ def _rule(
 @numba.njit(cache=True)
 def _raised_run(
     k: FloatArray, w: FloatArray, scalars: FloatArray, reach: float, tau: float,
-    x: FloatArray, v: FloatArray, resting: FloatArray, dwell: FloatArray,
+    keep: float, x: FloatArray, v: FloatArray, resting: FloatArray, dwell: FloatArray,
     direction: FloatArray, state: FloatArray, out: FloatArray,
 ) -> None:  # fmt: skip
     """The raised elements' force less that of the same elements held to their plain
@@ -121,7 +113,7 @@ def _raised_run(
     at the current speed, times the gain or times 1, so the difference is the gain's
     alone (the climb from the stick to the sliding level belongs to the baseline). Where
     the move turns back before an element has slipped (:func:`_turned`), its gain is
-    lost: the raised elements become the held ones.
+    lost (unless ``keep``): the raised elements become the held ones.
     ``state`` (6 n + ``_N_TAIL``: the held elements' forces, slip directions and holds,
     the raised ones' alike, then the scalars) is advanced in place, so a
     stream of one-sample calls equals one batch.
@@ -156,7 +148,7 @@ def _raised_run(
         state[tail + _MOVE], lost = _turned(
             state[tail + _MOVE], state[tail + _START_X], x[j], direction[j]
         )
-        if lost:
+        if lost and keep == 0.0:
             for i in range(n):
                 f[n + i], d[n + i], g[n + i] = f[i], d[i], g[i]
         for i in range(2 * n):
@@ -201,7 +193,7 @@ def _held_at_starts(
 @numba.njit(cache=True)
 def _raised_windows(
     k: FloatArray, w: FloatArray, scalars: FloatArray, reach: float, tau: float,
-    x: FloatArray, v: FloatArray, resting: FloatArray, dwell: FloatArray,
+    keep: float, x: FloatArray, v: FloatArray, resting: FloatArray, dwell: FloatArray,
     direction: FloatArray, held: FloatArray, out: FloatArray,
 ) -> None:  # fmt: skip
     """:func:`_raised_run` from the virgin state, bit for bit, element by element only
@@ -235,7 +227,7 @@ def _raised_windows(
             out[j] = 0.0
             continue
         move, lost = _turned(move, start_x, x[j], direction[j])
-        if lost:
+        if lost and keep == 0.0:
             for q in range(m):
                 i = live[q]
                 fr[i], dr[i], gr[i] = fh[i], dh[i], gh[i]
@@ -263,9 +255,12 @@ def _raised_windows(
 
 class RaisedLimits:
     """``scale`` times the extra force of a GMS's limits raised (by ``reach``) after
-    standstills, batch or per sample (one state carried from call to call)."""
+    standstills, batch or per sample (one state carried from call to call); ``keep``:
+    the gain kept through a turn until the element slips."""
 
-    def __init__(self, gms: GmsParams, tau_s: float, reach: float, scale: float = 1.0) -> None:
+    def __init__(
+        self, gms: GmsParams, tau_s: float, reach: float, scale: float = 1.0, keep: float = 0.0
+    ) -> None:
         active = gms.limit_N > 0.0
         w = gms.limit_N[active]
         spread = np.exp(np.linspace(-SPREAD, SPREAD, SPREAD_ELEMENTS))
@@ -276,6 +271,7 @@ class RaisedLimits:
         self.tau_s = max(tau_s, TAU_RANGE_S[0])
         self.reach = reach
         self.scale = scale
+        self.keep = float(keep)
         self.reset()
 
     def reset(self) -> None:
@@ -288,9 +284,8 @@ class RaisedLimits:
     def run(self, ctx: Context) -> FloatArray:
         """The (scaled) extra force along ``ctx``, continuing from the current state."""
         out = np.empty(ctx.position_m.size)
-        _raised_run(
-            self.k, self.w, self.scalars, self.reach, self.tau_s, *_path(ctx), self.state, out
-        )
+        _raised_run(self.k, self.w, self.scalars, self.reach, self.tau_s, self.keep,
+                    *_path(ctx), self.state, out)  # fmt: skip
         return self.scale * out
 
     def held_at_starts(self, ctx: Context) -> FloatArray:
@@ -306,9 +301,8 @@ class RaisedLimits:
         hand."""
         held = self.held_at_starts(ctx) if held is None else held
         out = np.empty(ctx.position_m.size)
-        _raised_windows(
-            self.k, self.w, self.scalars, self.reach, self.tau_s, *_path(ctx), held, out
-        )
+        _raised_windows(self.k, self.w, self.scalars, self.reach, self.tau_s, self.keep,
+                        *_path(ctx), held, out)  # fmt: skip
         return self.scale * out
 
     def step(
@@ -320,7 +314,7 @@ class RaisedLimits:
         x, v, rest, dwell, turn = self._sample
         x[0], v[0], rest[0], dwell[0] = position_m, velocity_m_s, resting, dwell_s
         turn[0] = direction
-        _raised_run(self.k, self.w, self.scalars, self.reach, self.tau_s,
+        _raised_run(self.k, self.w, self.scalars, self.reach, self.tau_s, self.keep,
                     x, v, rest, dwell, turn, self.state, self._out)  # fmt: skip
         return self.scale * float(self._out[0])
 
@@ -345,21 +339,30 @@ def _needs(gms: GmsParams | None, where: str) -> GmsParams:
 class DwellTime(Effect):
     """Break-away limits raised by 1 + gamma ln(1 + t_d/tau) after a standstill, element
     by element (module docstring); ``reach`` is the gain the column's windows are
-    computed at (the fit's shape parameter, gamma's own value when it fits)."""
+    computed at (the fit's shape parameter, gamma's own value when it fits);
+    ``kept_through_turns`` 1: the spec's form, 0: the gain lost at a turn."""
 
     name: ClassVar[str] = "dwell_time"
-    SHAPE: ClassVar[tuple[str, ...]] = ("tau_s", "reach")
+    SHAPE: ClassVar[tuple[str, ...]] = ("tau_s", "reach", "kept_through_turns")
     SET_BY_SIZE: ClassVar[tuple[str, ...]] = ("reach",)
     COEFFICIENT_LOWER: ClassVar[float] = 0.0
     gamma: float
     tau_s: float
     reach: float
+    kept_through_turns: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.kept_through_turns not in (0.0, 1.0):
+            raise ValueError(
+                f"dwell_time: kept_through_turns must be 0 or 1, got {self.kept_through_turns}"
+            )
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:
         """The raised GMS's extra force at the gain ``reach``, over ``reach``."""
+        keep = shape.get("kept_through_turns", 0.0)
         raised = RaisedLimits(
-            _needs(ctx.gms, "context"), shape["tau_s"], shape["reach"], 1 / shape["reach"]
+            _needs(ctx.gms, "context"), shape["tau_s"], shape["reach"], 1 / shape["reach"], keep
         )
         # the elements are the context's own GMS's, so what it keeps is theirs
         held = ctx.derived.get(HELD_KEY)
@@ -370,7 +373,8 @@ class DwellTime(Effect):
     @classmethod
     def from_coefficients(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Effect:
         """The effect with gain ``gamma = coefficients[0]``."""
-        return cls(float(coefficients[0]), shape["tau_s"], shape["reach"])
+        keep = shape.get("kept_through_turns", 0.0)
+        return cls(float(coefficients[0]), shape["tau_s"], shape["reach"], keep)
 
     def coefficients(self) -> FloatArray:
         """``[gamma]``."""
@@ -409,23 +413,25 @@ class DwellTime(Effect):
 
     def stream(self, gms: GmsParams | None) -> RaisedLimits:
         """The per-sample form: its elements' state is carried from sample to sample."""
-        return RaisedLimits(_needs(gms, "stream"), self.tau_s, self.reach, self.gamma / self.reach)
+        return RaisedLimits(_needs(gms, "stream"), self.tau_s, self.reach,
+                            self.gamma / self.reach, self.kept_through_turns)  # fmt: skip
 
     @classmethod
     def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
         """tau over the decades from :func:`shortest_tau` to the trace's length; gains
-        3-30 %."""
+        3-30 %; both forms at a turn."""
         lo, hi = cls.shape_bounds(ctx, presliding_m)["tau_s"]
         return [
-            {"tau_s": float(tau), "reach": reach}
+            {"tau_s": float(tau), "reach": reach, "kept_through_turns": keep}
             for tau in np.geomspace(lo, max(min(hi, duration(ctx)), 2 * lo), 9)
             for reach in (0.03, 0.1, 0.3)
+            for keep in (0.0, 1.0)
         ]
 
     @classmethod
     def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
         """tau from :func:`shortest_tau` to ``TAU_RANGE_S``'s top, the gain in
-        ``REACH_RANGE``."""
+        ``REACH_RANGE`` (the form at a turn is not searched: a discrete key)."""
         return {"tau_s": (shortest_tau(ctx), TAU_RANGE_S[1]), "reach": REACH_RANGE}
 
 
