@@ -175,20 +175,32 @@ def test_a_held_block_with_the_only_top_speeds_is_trained_on() -> None:
 def test_fast_rows_only_in_training_are_split_in_time() -> None:
     """Blocks of 10 rows, the second third held; every row above a fifth of the top speed
     in training block 3 (rows 32-37): the later half of them, from the median row to the
-    block's end, is held out; if that half holds every training row at 0.8 x the top, the
-    earlier half from the block's start is held out instead; once a held row reaches a
-    fifth, nothing moves."""
+    block's end, is held out; where that half holds every training row at 0.8 x the top
+    speed, or the top acceleration, the earlier half from the block's start; fast rows in
+    two blocks are split in the block of their median; a single fast row is not split;
+    once a held row reaches a fifth, nothing moves."""
     block = np.repeat(np.arange(9), 10)
     held = block % 3 == 1
-    speed = np.full(block.size, 0.001)
+    speed, accel = np.full(block.size, 0.001), np.zeros(block.size)
+
+    def moved() -> list[int]:
+        return np.flatnonzero(top_rows_held(block, held, speed, accel)).tolist()
+
     speed[32:38] = [0.01, 0.03, 0.05, 0.05, 0.03, 0.01]
-    moved = top_rows_held(block, held, speed)
-    np.testing.assert_array_equal(np.flatnonzero(moved), np.arange(35, 40))
-    speed[34] = 0.03  # the top (0.05) only in the later half
-    np.testing.assert_array_equal(np.flatnonzero(top_rows_held(block, held, speed)),
-                                  np.arange(30, 35))  # fmt: skip
+    assert moved() == list(range(35, 40))
+    accel[36:38] = 2.0  # the top acceleration in the later half only
+    assert moved() == list(range(30, 35))
+    accel[:] = 0.0
+    speed[34] = 0.03  # the top speed (0.05) in the later half only
+    assert moved() == list(range(30, 35))
+    speed[32:38] = 0.001
+    speed[5:8], speed[34:37] = 0.02, [0.03, 0.05, 0.03]  # blocks 0 and 3
+    assert moved() == list(range(30, 35))
+    speed[5:8], speed[34], speed[36] = 0.001, 0.001, 0.001  # one fast row
+    assert moved() == []
+    speed[32:38] = [0.01, 0.03, 0.05, 0.05, 0.03, 0.01]
     speed[14] = 0.011  # a held row (block 1) above a fifth of the top
-    assert not np.any(top_rows_held(block, held, speed))
+    assert moved() == []
 
 
 def test_seed_159_holds_out_half_its_fast_moves() -> None:
@@ -201,6 +213,8 @@ def test_seed_159_holds_out_half_its_fast_moves() -> None:
     fast = speed >= 0.2 * float(np.max(speed))
     assert 0.3 <= np.sum(fast & part.held) / np.sum(fast) <= 0.7
     assert float(np.max(speed[part.train])) >= 0.8 * float(np.max(speed))
+    accel = np.abs(part.kin.acceleration_m_s2)
+    assert float(np.max(accel[part.train])) >= 0.8 * float(np.max(accel))
 
 
 def test_the_held_third_follows_the_starts() -> None:

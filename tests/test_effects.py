@@ -316,19 +316,26 @@ def test_stribeck_form_scales_the_gms_force() -> None:
 
 
 def test_a_direction_asymmetry_is_told_apart_at_speeds_reached_both_ways() -> None:
-    """Forward up to 10 mm/s, back up to 2 mm/s: only rows at 2 mm/s or less (either way)
-    can tell half the speed from a level of the speed; a trace that never moves back has
-    none but its standstills; the other effects do not restrict the rows."""
+    """Forward up to 10 mm/s, back up to 2 mm/s: only moving rows at 2 mm/s or less
+    (either way) can tell half the speed from a level of the speed; with a second part
+    that moves back at 10 mm/s, every moving row of both; a trace that never moves back
+    has none; the other effects do not restrict the rows."""
     t = np.linspace(0.0, 1.0, 1001)
     v = np.where(t < 0.5, 10e-3 * np.sin(2 * np.pi * t), 2e-3 * np.sin(2 * np.pi * t))
     ctx = fx.Context.along(t, 0 * t, v, 0 * t, 0 * t)
-    apart = fx.DirectionAsymmetry.told_apart(ctx)
-    np.testing.assert_array_equal(apart, np.abs(v) <= np.max(-v))
-    assert 0 < np.sum(apart & (v > 0)) < np.sum(v > 0)
-    assert np.all(apart[v < 0])
+    moving = ctx.moving != 0.0
+    assert 0 < np.count_nonzero(~moving) < 100
+    (apart,) = fx.DirectionAsymmetry.told_apart([ctx])
+    np.testing.assert_array_equal(apart, moving & (np.abs(v) <= np.max(-v[moving])))
+    assert 0 < np.sum(apart & (v > 0)) < np.sum(moving & (v > 0))
+    assert np.all(apart[moving & (v < 0)])
+    back = fx.Context.along(t, 0 * t, -v[::-1], 0 * t, 0 * t)  # back at 10, forward at 2
+    both = fx.DirectionAsymmetry.told_apart([ctx, back])
+    for c, m in zip((ctx, back), both, strict=True):
+        np.testing.assert_array_equal(m, c.moving != 0.0)
     forward = fx.Context.along(t, 0 * t, np.clip(v, 0.0, None), 0 * t, 0 * t)
-    np.testing.assert_array_equal(fx.DirectionAsymmetry.told_apart(forward), v <= 0.0)
-    assert fx.Stribeck.told_apart(ctx) is None and fx.Offset.told_apart(ctx) is None
+    assert not np.any(fx.DirectionAsymmetry.told_apart([forward])[0])
+    assert fx.Stribeck.told_apart([ctx]) is None and fx.Offset.told_apart([ctx]) is None
 
 
 def test_drift_limits() -> None:
@@ -394,12 +401,14 @@ def test_dict_round_trip_and_bad_entries() -> None:
     kept = fx.DwellTime(0.1, 1.0, 0.12, 1.0)
     assert fx.effect_to_dict(kept)["parameters"]["kept_through_turns"] == 1.0
     assert fx.effect_from_dict(fx.effect_to_dict(kept)) == kept
-    older = {"effect": "dwell_time", "parameters": {"gamma": 0.1, "tau_s": 1.0, "reach": 0.12}}
+    assert "kept_through_turns" not in fx.effect_to_dict(fx.DwellTime(0.1, 1.0, 0.12))["parameters"]
+    params: dict[str, float] = {"gamma": 0.1, "tau_s": 1.0, "reach": 0.12}
+    older = {"effect": "dwell_time", "parameters": params}
     assert fx.effect_from_dict(older) == fx.DwellTime(0.1, 1.0, 0.12, 0.0)
-    older["parameters"]["kept_through_turns"] = 0.5
-    with pytest.raises(ValueError, match="kept_through_turns must be 0 or 1, got 0.5"):
+    params["kept_through_turns"] = 0.5
+    with pytest.raises(fx.ExtensionError, match=r"kept_through_turns must be 0 or 1, got 0\.5"):
         fx.effect_from_dict(older)
-    with pytest.raises(ValueError, match=r"optional: \['kept_through_turns'\]"):
+    with pytest.raises(fx.ExtensionError, match=r"optional: \['kept_through_turns'\]"):
         fx.effect_from_dict({"effect": "dwell_time", "parameters": {"gamma": 0.1}})
 
 

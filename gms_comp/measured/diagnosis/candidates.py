@@ -239,13 +239,10 @@ class Scorer:
         """The held-out rows (every part's, in order) whose motion can tell ``opt``'s
         effect from the others (:meth:`~gms_comp.runtime.effects.base.Effect.told_apart`),
         or None: every row."""
-        masks = [opt.effect.told_apart(fp.ctx) for fp in self.parts]
-        if all(m is None for m in masks):
+        masks = opt.effect.told_apart([fp.ctx for fp in self.parts])
+        if masks is None:
             return None
-        return np.concatenate([
-            (np.ones(fp.part.held.size, dtype=bool) if m is None else m)[fp.part.held]
-            for m, fp in zip(masks, self.parts, strict=True)
-        ])  # fmt: skip
+        return np.concatenate([m[fp.part.held] for m, fp in zip(masks, self.parts, strict=True)])
 
     def change(self, trial: Trial) -> FloatArray:
         """How much ``trial`` changes the model force on the main part."""

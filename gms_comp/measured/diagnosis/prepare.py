@@ -60,13 +60,13 @@ HELD_STARTS_SHARE = 0.5
 # 0.42); trained on, 0.41.
 TRAIN_TOP_SHARE = 0.8
 # And the held-out rows must reach HELD_TOP_SHARE of the top speed: where they do not,
-# the training rows that do are split in time at their median row, and the later ones up
-# to the end of that row's block are held out (the earlier ones, if the later ones hold
-# every row at TRAIN_TOP_SHARE of it). A trace's fast moves may lie in one block: on
-# stribeck-159 of an independent generator (every row above 7 mm/s of a 35 mm/s trace in
-# one of 60 blocks, 1 % of the rows, the held-out part below 2.1 mm/s) a Stribeck fall
-# over 6 mm/s (17 x the noise there) was fitted on the training rows and judged where it
-# does not act: held out 1.5 % lower, z 2.7, and `none`.
+# the training rows that do are split in time (:func:`top_rows_held`), half of them held
+# out, the training rows keeping TRAIN_TOP_SHARE of the top speed and acceleration. A
+# trace's fast moves may lie in one block: on stribeck-159 of an independent generator
+# (every row above 7 mm/s of a 35 mm/s trace in one of 60 blocks, 1 % of the rows, the
+# held-out part below 2.1 mm/s) a Stribeck fall over 6 mm/s (17 x the noise there) was
+# fitted on the training rows and judged where it does not act: held out 1.5 % lower,
+# z 2.7, and `none`.
 HELD_TOP_SHARE = 0.2
 
 # An encoder's step: seen in at least STEP_SHARE of the nonzero steps, and at least
@@ -187,12 +187,14 @@ def encoder_force_ratio(gms: GmsParams, prepared: Prepared) -> float:
 
 def prepare(
     trace: Trace, force_kind: ForceKind, validation: Trace | None, cfg: DiagnosisConfig,
-    dequantise: bool = False,
+    dequantise: bool = False, held: BoolArray | None = None,
 ) -> Prepared:  # fmt: skip
     """The parts of ``trace`` (held-out: every third of ``cfg.n_blocks`` blocks, so both
     parts hold every kind of motion, :func:`held_third`) or of ``trace`` and
     ``validation`` (held out whole); with ``dequantise``, their kinematics from the
-    encoder's counts read as motion (:func:`.motion.dequantised`).
+    encoder's counts read as motion (:func:`.motion.dequantised`); ``held``: the held-out
+    rows of ``trace`` as another reading chose them (the two readings are then compared
+    on the same rows).
 
     Raises
     ------
@@ -214,14 +216,7 @@ def prepare(
     check_usable(trace, kin, deadband, still)
     n = len(trace)
     if validation is None:
-        block = np.arange(n) * cfg.n_blocks // n
-        third = block % 3
-        held = third == held_third(
-            third, kin, still, deadband, cfg.rest_band_steps * resolution, trace.position_m
-        )  # fmt: skip
-        for size in (kin.velocity_m_s, kin.acceleration_m_s2):
-            held &= ~top_blocks(block, held, np.abs(size))
-        held |= top_rows_held(block, held, np.abs(kin.velocity_m_s))
+        held = _held_rows(kin, still, deadband, cfg, resolution, trace) if held is None else held
         parts: tuple[Part, ...] = (Part(kin, trace.force_N, ~held, held, trace.position_m),)
     else:
         vkin = kinematics(validation, cutoff, accel_cutoff)
@@ -236,6 +231,23 @@ def prepare(
     rest_band = cfg.rest_band_steps * resolution
     return Prepared(
         parts, drive, force_kind, still, deadband, resolution, rest_band, step, read
+    )  # fmt: skip
+
+
+def _held_rows(
+    kin: Kinematics, still: float, deadband: float, cfg: DiagnosisConfig, resolution: float,
+    trace: Trace,
+) -> BoolArray:  # fmt: skip
+    n = len(trace)
+    block = np.arange(n) * cfg.n_blocks // n
+    third = block % 3
+    held = third == held_third(
+        third, kin, still, deadband, cfg.rest_band_steps * resolution, trace.position_m
+    )  # fmt: skip
+    for size in (kin.velocity_m_s, kin.acceleration_m_s2):
+        held &= ~top_blocks(block, held, np.abs(size))
+    return held | top_rows_held(
+        block, held, np.abs(kin.velocity_m_s), np.abs(kin.acceleration_m_s2)
     )  # fmt: skip
 
 
@@ -272,27 +284,32 @@ def top_blocks(block: IntArray, held: BoolArray, size: FloatArray) -> BoolArray:
     return np.isin(block, np.unique(block[held & (size >= reach)]))
 
 
-def top_rows_held(block: IntArray, held: BoolArray, size: FloatArray) -> BoolArray:
+def top_rows_held(
+    block: IntArray, held: BoolArray, speed: FloatArray, accel: FloatArray
+) -> BoolArray:
     """The training rows to hold out (``block``: each sample's) where the ``held`` rows do
-    not reach ``HELD_TOP_SHARE`` of the top ``size`` (else none): split in time at the
-    median of the training rows that do, the later ones to the end of that row's block,
-    or the earlier ones from its start if the later hold every training row at
-    ``TRAIN_TOP_SHARE`` of the top."""
-    top = float(np.max(size))
+    not reach ``HELD_TOP_SHARE`` of the top ``speed`` (else none): in the block of the
+    median training row that does, split at the median of that block's such rows, the
+    later rows to the block's end, or else the earlier ones from its start; a part that
+    holds some of those rows and leaves the training rows ``TRAIN_TOP_SHARE`` of the top
+    speed and of the top ``accel`` (none if neither does)."""
     out = np.zeros(block.size, dtype=bool)
-    if top <= 0.0 or np.any(size[held] >= HELD_TOP_SHARE * top):
+    top = float(np.max(speed))
+    if top <= 0.0 or np.any(speed[held] >= HELD_TOP_SHARE * top):
         return out
-    rows = np.flatnonzero(~held & (size >= HELD_TOP_SHARE * top))
-    middle = int(rows[rows.size // 2])
-    same = np.flatnonzero(block == block[middle])
-    later = np.zeros(block.size, dtype=bool)
-    later[middle : same[-1] + 1] = True
-    at_top = ~held & (size >= TRAIN_TOP_SHARE * top)
-    if np.all(later[at_top]):
-        out[same[0] : middle] = True
-    else:
-        out = later
-    return out & ~held
+    fast = ~held & (speed >= HELD_TOP_SHARE * top)
+    rows = np.flatnonzero(fast)
+    same = np.flatnonzero(block == block[rows[rows.size // 2]])
+    inside = rows[(rows >= same[0]) & (rows <= same[-1])]
+    middle = int(inside[inside.size // 2])
+    for part in (slice(middle, same[-1] + 1), slice(same[0], middle)):
+        out[:] = False
+        out[part] = True
+        out &= ~held
+        kept = [np.any(~held & ~out & (a >= TRAIN_TOP_SHARE * np.max(a))) for a in (speed, accel)]
+        if np.any(out & fast) and all(kept):
+            return out
+    return np.zeros(block.size, dtype=bool)
 
 
 def acceleration_cutoff(trace: Trace, resolution_m: float) -> float:

@@ -113,7 +113,9 @@ def _diagnose(
     as_motion: tuple[Prepared, Baseline] | None = None  # the reading not taken (yet)
     if ratio >= cfg.encoder_noise_ratio and prepared.encoder_step_m > 0.0:
         say("reading the encoder's counts as motion")
-        read = prepare(trace, force_kind, validation, cfg, dequantise=True)
+        # on the rows the counts hold out, so that the two readings compare like for like
+        same = None if validation is not None else prepared.parts[0].held
+        read = prepare(trace, force_kind, validation, cfg, dequantise=True, held=same)
         again = fit_baseline(read, cfg, table)
         info["counts_heldout_rms_N"] = baseline.heldout_rms_N
         if again.heldout_rms_N < (1.0 - cfg.margin) * baseline.heldout_rms_N:

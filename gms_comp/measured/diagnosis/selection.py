@@ -60,8 +60,8 @@ CONSISTENT_WITHIN = 1.5
 # shape is searched from the LOCAL_STARTS best of its grid (:func:`_local_shape`).
 LOCAL_SHARE = 0.25
 LOCAL_STARTS = 3
-# Shape keys the local search does not step (integers: a filter's order). Where the grid's
-# best lowers the held-out RMS by the margin, the best grid trial of each value within
+# Shape keys the local search does not step (a filter's order, a dwell gain's form). Where
+# the grid's best lowers the held-out RMS by the margin, the best grid trial of each value within
 # DISCRETE_WITHIN of it is refined: a grid 1.6x apart in cut-off picked a filter's order
 # by which grid point fell nearer its delay (12 of 30 independent traces one order off,
 # the cut-off 17-56 % off); refined, each order's cut-off decides (seeds 122, 128).

@@ -21,8 +21,8 @@ form, parameters, coefficient bound, shape grid and shape bounds) and one line i
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from dataclasses import asdict, dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import MISSING, dataclass, fields
 from typing import ClassVar, Protocol
 
 import numba
@@ -97,9 +97,10 @@ class Effect:
         return dict(shape)
 
     @classmethod
-    def told_apart(cls, ctx: Context) -> BoolArray | None:
-        """The rows along ``ctx`` whose motion can tell this effect from the others it
-        could stand in for, where the diagnosis must see its gain (None: every row)."""
+    def told_apart(cls, ctxs: Sequence[Context]) -> list[BoolArray] | None:
+        """The rows along each of ``ctxs`` (the parts of one diagnosis, judged together)
+        whose motion can tell this effect from the others it could stand in for, where
+        the diagnosis must see its gain (None: every row)."""
         return None
 
     def shape(self) -> Shape:
@@ -107,8 +108,13 @@ class Effect:
         return {k: getattr(self, k) for k in self.SHAPE}
 
     def parameters(self) -> dict[str, float]:
-        """All parameters by their spec names, SI units."""
-        return {k: float(v) for k, v in asdict(self).items()}
+        """All parameters by their spec names, SI units; an optional one (a field with a
+        default) only where it differs from it, so that older readers read the table."""
+        return {
+            f.name: float(getattr(self, f.name))
+            for f in fields(self)
+            if f.default is MISSING or getattr(self, f.name) != f.default
+        }
 
     def in_context(self, ctx: Context) -> dict[str, float]:
         """What the parameters come to along ``ctx``, where that is what a trace

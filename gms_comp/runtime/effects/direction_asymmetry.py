@@ -4,7 +4,7 @@ c - c_diff/2 moving back (EMPS: a fatigued screw, Janot et al. 2019, section 4.2
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -28,15 +28,18 @@ class DirectionAsymmetry(Effect):
         return 0.5 * np.abs(ctx.velocity_m_s)[:, None]
 
     @classmethod
-    def told_apart(cls, ctx: Context) -> BoolArray:
-        """The rows at speeds the trace reaches both ways: where one direction alone moves
-        at a speed, half its speed is also a level that falls or rises with the speed
-        there (on stribeck-159 of an independent generator, one move of the trace's
+    def told_apart(cls, ctxs: Sequence[Context]) -> list[BoolArray]:
+        """The moving rows at speeds the parts reach both ways: where one direction alone
+        moves at a speed, half its speed is also a level that falls or rises with the
+        speed there (on stribeck-159 of an independent generator, one move of the trace's
         35 mm/s forward, back at 2.1 mm/s at most: half the speed took a Stribeck fall
-        at that move as well as Stribeck did, held out within 0.04 %)."""
-        v = ctx.velocity_m_s
-        both = min(float(np.max(v, initial=0.0)), float(-np.min(v, initial=0.0)))
-        return np.abs(v) <= both
+        at that move as well as Stribeck did, held out within 0.04 %). None on a trace
+        that moves one way only."""
+        moving = [(c.velocity_m_s, c.moving != 0.0) for c in ctxs]
+        both = min(
+            max(float(np.max(sign * v[m], initial=0.0)) for v, m in moving) for sign in (1.0, -1.0)
+        )
+        return [m & (np.abs(v) <= both) & (both > 0.0) for v, m in moving]
 
     @classmethod
     def from_coefficients(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Effect:
