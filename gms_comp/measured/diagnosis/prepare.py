@@ -293,23 +293,23 @@ def top_rows_held(
     later rows to the block's end, or else the earlier ones from its start; a part that
     holds some of those rows and leaves the training rows ``TRAIN_TOP_SHARE`` of the top
     speed and of the top ``accel`` (none if neither does)."""
-    out = np.zeros(block.size, dtype=bool)
+    none = np.zeros(block.size, dtype=bool)
     top = float(np.max(speed))
     if top <= 0.0 or np.any(speed[held] >= HELD_TOP_SHARE * top):
-        return out
+        return none
     fast = ~held & (speed >= HELD_TOP_SHARE * top)
+    tops = [a >= TRAIN_TOP_SHARE * np.max(a) for a in (speed, accel)]
     rows = np.flatnonzero(fast)
     same = np.flatnonzero(block == block[rows[rows.size // 2]])
     inside = rows[(rows >= same[0]) & (rows <= same[-1])]
     middle = int(inside[inside.size // 2])
     for part in (slice(middle, same[-1] + 1), slice(same[0], middle)):
-        out[:] = False
+        out = none.copy()
         out[part] = True
         out &= ~held
-        kept = [np.any(~held & ~out & (a >= TRAIN_TOP_SHARE * np.max(a))) for a in (speed, accel)]
-        if np.any(out & fast) and all(kept):
+        if np.any(out & fast) and all(np.any(~held & ~out & t) for t in tops):
             return out
-    return np.zeros(block.size, dtype=bool)
+    return none
 
 
 def acceleration_cutoff(trace: Trace, resolution_m: float) -> float:

@@ -65,7 +65,7 @@ LOCAL_STARTS = 3
 # DISCRETE_WITHIN of it is refined: a grid 1.6x apart in cut-off picked a filter's order
 # by which grid point fell nearer its delay (12 of 30 independent traces one order off,
 # the cut-off 17-56 % off); refined, each order's cut-off decides (seeds 122, 128).
-DISCRETE = ("order", "kept_through_turns")  # and a dwell gain's form at a turn
+DISCRETE = ("order", "kept_through_turns")
 DISCRETE_WITHIN = 1.25
 
 Progress = Callable[[str], None]
