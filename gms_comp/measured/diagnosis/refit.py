@@ -47,6 +47,7 @@ from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
 from gms_comp.measured.diagnosis.gain import lowers
 from gms_comp.measured.diagnosis.selection import (
+    DISCRETE,
     Selection,
     admissible,
     agreed,
@@ -403,7 +404,7 @@ def _refine_shape(
 
     first, _, first_cost = settled(opt)
     if opt.effect in WHOLE_ROWS:  # from the best of its grid's time constants
-        fixed = {k: opt.shape[k] for k in opt.effect.SET_BY_SIZE}
+        fixed = {k: opt.shape[k] for k in (*opt.effect.SET_BY_SIZE, *DISCRETE) if k in opt.shape}
         grid = {
             tuple(v for k, v in sorted(shape.items()) if k not in fixed): {**shape, **fixed}
             for shape in opt.effect.shape_grid(parts[0].ctx, np.zeros(0), presliding_m)

@@ -170,8 +170,11 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
                 continue
             best = min(trials, key=lambda t: t.heldout_rms_N)
             if acts_locally(best):
-                # its shape from all its events: the held-out rows may hold one or none
-                best = _local_shape(scorer, trials, baseline.presliding_m)
+                # its shape from all its events (the held-out rows may hold one or none),
+                # each form's apart: the forms worth an effect first, then held out
+                shaped = [_local_shape(scorer, f, baseline.presliding_m) for f in _forms(trials)]
+                best = min(shaped, key=lambda t: (not admissible(cfg, scorer, t, level),
+                                                  t.heldout_rms_N))  # fmt: skip
             elif best.heldout_rms_N < scorer.heldout_rms_N:
                 # each order refined only where the effect could be kept by its margin
                 # alone (each is a local search: 10 % of a typical trace's time)
@@ -229,13 +232,18 @@ def _free_level(
 def _per_value(trials: Sequence[Trial]) -> list[Trial]:
     """The best trial of each value of the ``DISCRETE`` keys, of those within
     ``DISCRETE_WITHIN`` of the best's held-out RMS (the best alone when there are none)."""
-    best: dict[tuple[float, ...], Trial] = {}
+    best = [min(f, key=lambda t: t.heldout_rms_N) for f in _forms(trials)]
+    top = min(t.heldout_rms_N for t in best)
+    return [t for t in best if t.heldout_rms_N <= DISCRETE_WITHIN * top]
+
+
+def _forms(trials: Sequence[Trial]) -> list[list[Trial]]:
+    """``trials`` by the values of their ``DISCRETE`` keys, in order."""
+    forms: dict[tuple[float, ...], list[Trial]] = {}
     for t in trials:
         key = tuple(t.option.shape[k] for k in DISCRETE if k in t.option.shape)
-        if key not in best or t.heldout_rms_N < best[key].heldout_rms_N:
-            best[key] = t
-    top = min(t.heldout_rms_N for t in best.values())
-    return [t for t in best.values() if t.heldout_rms_N <= DISCRETE_WITHIN * top]
+        forms.setdefault(key, []).append(t)
+    return list(forms.values())
 
 
 def _refine(scorer: Scorer, best: Trial, presliding_m: float) -> Trial:

@@ -44,10 +44,10 @@ from gms_comp.runtime.effects.path import REST_HOLD_S, Context
 # The time constants the diagnosis considers (s): far below a servo cycle or above a
 # trace's length a dwell gain cannot be told from a constant one.
 TAU_RANGE_S = (1e-4, 1e2)
-# The forms at a turn the diagnosis fits. Both, on 50 dwell traces of seeds 136-185 of the
-# independent generator: -148, -165, -169 (none, 49 %, 42 % off) to 0.2, 11, 6 %, but
-# -146, -157, -182 (15, 2, 9 % off) to `none` (judged at the starts): 42 named for 44.
-FITTED_FORMS = (0.0,)
+# The forms at a turn the diagnosis fits, each from its own starts, a form worth an
+# effect taken before a better held-out one (selection._forms; the better held out alone
+# lost dwell_time-146, -157, -182 of the independent generator to `none`).
+FITTED_FORMS = (0.0, 1.0)
 # The gains at which the column's windows are computed (G: 0.5 % to 1.5 x the limits).
 REACH_RANGE = (5e-3, 1.5)
 # Each element's raised limit is spread over break-aways within exp(+-SPREAD) of its own,
