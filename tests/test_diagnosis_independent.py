@@ -297,12 +297,14 @@ def test_a_trace_that_cannot_tell_speed_from_direction_says_so(
     assert ("caveat: speed and direction go together" in text) == confounded, text
 
 
-@pytest.mark.parametrize(("seed", "order"), [(122, 3), (128, 3)])
+@pytest.mark.parametrize(("seed", "order"), [(122, 3), (128, 3), (142, 3), (185, 4), (188, 3)])
 def test_a_sensor_filter_s_order_is_decided_by_its_own_cutoff(
     seed: int, order: int, trace_dir: Path
 ) -> None:
-    # third-order filters fitted as fourth-order at a grid cut-off 28 % high: the order
-    # was the one whose grid point fell nearest the filter's delay
+    # 122, 128: third-order filters fitted as fourth-order at a grid cut-off 28 % high (the
+    # order was the one whose grid point fell nearest the filter's delay); 185, 188: one
+    # order off, 20 and 29 % in cut-off (the true order's grid best was not refined);
+    # 142: `unknown` (the blind elements had bent to the filter's lag)
     gen, outcome = diagnosed("sensor_lowpass", seed, trace_dir)
     assert outcome.named == "sensor_lowpass", _describe(gen, outcome)
     fitted = outcome.fitted("sensor_lowpass") or {}

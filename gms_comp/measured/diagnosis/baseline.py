@@ -201,19 +201,19 @@ def fit_free(
     """The free basis whose level (slip_level.Level) fits the training rows best, its
     limits by NNLS (a grid at exponent 2, then coordinate steps; or steps from ``start``'s).
 
-    A viscous term (c >= 0) and an offset are fitted beside them during the search and
-    then dropped: the slip level takes the velocity dependence that saturates, a linear
-    one is left to ``viscous`` (else C_v stands in for part of it), and an offset does not
-    bend the slip level (with a third of the level as offset, C_v came out where a
-    Stribeck fall beside it could not be kept)."""
+    A viscous term (c >= 0) and an offset are fitted beside them in the search, then
+    dropped: the slip level takes the saturating velocity dependence, a linear one is left
+    to ``viscous`` (else C_v stands in for part of it), and an offset does not bend the slip
+    level (a third of the level as offset put C_v where a Stribeck fall could not be kept)."""
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in prepared.parts)
     vt_range = transition_range(vmax)
+    sensed = None if start is None else start.sensed  # the columns through kept filters
     cache: dict[Level, float] = {}
 
     def cost(level: Level) -> float:
         key = (round(level[0], 6), round(level[1], 12), round(level[2], 6), level[3], level[4])
         if key not in cache:
-            cache[key] = _fit(prepared, FreeBasis(breakaway_m, *level), nuisance=True)[2]
+            cache[key] = _fit(prepared, FreeBasis(breakaway_m, *level, sensed=sensed), True)[2]
         return cache[key]
 
     exponent = EXPONENT_RANGE[1]
@@ -230,7 +230,7 @@ def fit_free(
         best = (cost(level), level)
         steps = REFINE_STEPS[1:]
     best = coordinate_steps(best, cost, steps, vt_range)
-    return FreeBasis(breakaway_m, *best[1])
+    return FreeBasis(breakaway_m, *best[1], sensed=sensed)
 
 
 def fit_baseline(prepared: Prepared, cfg: DiagnosisConfig, table: GmsParams | None) -> Baseline:

@@ -21,8 +21,8 @@ kernel (:func:`gms_comp.gms.simulate`) with one unit element.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
@@ -49,6 +49,10 @@ def breakaway_grid(kin: Kinematics, n_elements: int, resolution_m: float) -> Flo
     return np.geomspace(2 * resolution, hi, n_elements)
 
 
+# A linear filter on design columns (values, sample time in s).
+Sensor = Callable[[FloatArray, float], FloatArray]
+
+
 @dataclass(frozen=True)
 class FreeBasis:
     """Elements on a fixed grid of break-away displacements, sharing the slip level
@@ -62,14 +66,22 @@ class FreeBasis:
     transition_exponent: float = 2.0
     transition_tail: float = math.inf
     limit_follows_level: bool = False
+    # while the baseline is fitted again through a kept sensor low-pass: the columns
+    # through it (values, sample time), as the design passes them
+    sensed: Sensor | None = field(default=None, compare=False, repr=False)
 
     def columns(
         self, kin: Kinematics, spare: int = 0, order: Literal["C", "F"] = "C"
     ) -> FloatArray:
         """phi_i: the force of a unit-limit element with break-away ``breakaway_m[i]``
-        (then ``spare`` columns not set; ``order``: :func:`~gms_comp.gms.simulate_elements`)."""
-        unit = self.gms(np.ones(self.breakaway_m.size))
-        return simulate_elements(unit, kin.position_m, kin.velocity_m_s, spare, order)
+        (then ``spare`` columns not set; ``order``: :func:`~gms_comp.gms.simulate_elements`),
+        through ``sensed`` if set."""
+        n = self.breakaway_m.size
+        unit = self.gms(np.ones(n))
+        out = simulate_elements(unit, kin.position_m, kin.velocity_m_s, spare, order)
+        if self.sensed is not None:
+            out[:, :n] = self.sensed(out[:, :n], float(kin.time_s[1] - kin.time_s[0]))
+        return out
 
     def gms(self, coefficients: FloatArray, breakaway_m: FloatArray | None = None) -> GmsParams:
         """The GMS whose element i has limit ``coefficients[i]``; an element with zero

@@ -53,6 +53,7 @@ from gms_comp.measured.diagnosis.selection import (
     agreed,
     local_search,
 )
+from gms_comp.measured.diagnosis.sensed import sensed_again
 from gms_comp.measured.diagnosis.slip_level import SLIP_LEVEL_RANGE, transition_range
 from gms_comp.runtime import effects as fx
 
@@ -150,7 +151,7 @@ def refit_kept(selection: Selection, cfg: DiagnosisConfig) -> Extended:
     blind baseline had not found) is dropped."""
     chosen = list(selection.chosen)
     history = list(selection.heldout_rms_N)
-    baseline = _placed_again(selection.baseline, chosen, cfg)
+    baseline = sensed_again(_placed_again(selection.baseline, chosen, cfg), chosen)
     parts = baseline.parts
     basis = baseline.basis
     if chosen:
