@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 from indepgen import make_trace
 from scipy import signal
 
@@ -48,7 +49,7 @@ def test_a_sensed_basis_passes_its_element_columns_through_the_filter() -> None:
     sos = signal.butter(2, 20.0, fs=rate, output="sos")
 
     def sensed(values: np.ndarray, sample_time_s: float) -> np.ndarray:
-        assert sample_time_s == 1.0 / rate
+        assert sample_time_s == pytest.approx(1.0 / rate)
         return np.asarray(signal.sosfilt(sos, values, axis=0))
 
     plain = FreeBasis(np.array([1e-6, 10e-6]))

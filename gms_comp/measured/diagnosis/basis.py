@@ -66,8 +66,8 @@ class FreeBasis:
     transition_exponent: float = 2.0
     transition_tail: float = math.inf
     limit_follows_level: bool = False
-    # while the baseline is fitted again through a kept sensor low-pass: the columns
-    # through it (values, sample time), as the design passes them
+    # while the baseline is fitted again through a kept filter (a sensor low-pass): the
+    # element columns through it (the spare ones are not; see diagnosis.sensed)
     sensed: Sensor | None = field(default=None, compare=False, repr=False)
 
     def columns(
@@ -79,8 +79,9 @@ class FreeBasis:
         n = self.breakaway_m.size
         unit = self.gms(np.ones(n))
         out = simulate_elements(unit, kin.position_m, kin.velocity_m_s, spare, order)
-        if self.sensed is not None:
-            out[:, :n] = self.sensed(out[:, :n], float(kin.time_s[1] - kin.time_s[0]))
+        if self.sensed is not None:  # at the mean interval, as the design's filters
+            dt = (kin.time_s[-1] - kin.time_s[0]) / max(kin.time_s.size - 1, 1)
+            out[:, :n] = self.sensed(out[:, :n], float(dt))
         return out
 
     def gms(self, coefficients: FloatArray, breakaway_m: FloatArray | None = None) -> GmsParams:

@@ -60,15 +60,16 @@ CONSISTENT_WITHIN = 1.5
 # shape is searched from the LOCAL_STARTS best of its grid (:func:`_local_shape`).
 LOCAL_SHARE = 0.25
 LOCAL_STARTS = 3
-# Shape keys the local search does not step (a filter's order, a dwell gain's form). Where
-# the grid's best lowers the held-out RMS by the margin, the best grid trial of each value
-# is refined: a grid 1.6x apart in cut-off picked a filter's order by which grid point
-# fell nearer its delay (12 of 30 independent traces one order off, the cut-off 17-56 %
-# off); refined, each order's cut-off decides (seeds 122, 128). Only the orders whose
-# grid best held out within 1.25x of the best were refined once: where the filter is
-# large the true order's grid best was further off (sensor_lowpass-188: baseline 4.58 N,
-# grid bests 0.77 N for order 4 and 1.07 N for order 3; refined, 0.63 and 0.55 N): 7 of
-# 70 traces one order off.
+# Shape keys the local search does not step (a filter's order, a dwell gain's form). An
+# effect judged where it acts searches each value's shape (a form worth an effect first,
+# then by held-out RMS). Else, where the grid's best lowers the held-out RMS by the
+# margin, the best grid trial of each value is refined: a grid 1.6x apart in cut-off
+# picked a filter's order by which grid point fell nearer its delay (12 of 30 independent
+# traces one order off, the cut-off 17-56 % off); refined, each order's cut-off decides
+# (seeds 122, 128). Only the orders whose grid best held out within 1.25x of the best
+# were refined once: where the filter is large the true order's grid best was further
+# off (sensor_lowpass-188: baseline 4.58 N, grid bests 0.77 N for order 4 and 1.07 N for
+# order 3; refined, 0.63 and 0.55 N): 7 of 70 traces one order off.
 DISCRETE = ("order", "kept_through_turns")
 
 Progress = Callable[[str], None]

@@ -18,7 +18,7 @@ until it slips (``kept_through_turns`` 1); the other (0) loses it at the turn. A
 kept through presliding after a start depends on where exactly each fitted break-away
 lies: on the project's own generator the gain after the median dwell came out 15-37 %
 low on seeds 1-5 with the kept form, 2-16 % with the turn's. A table may hold either;
-the diagnosis fits the turn's (``FITTED_FORMS``).
+the diagnosis fits both (``FITTED_FORMS``) and takes one worth an effect.
 
 The width of each element's window grows with g, its height too; the design column is
 the extra force at a gain ``reach`` (G) divided by G, so that its coefficient ``gamma``
