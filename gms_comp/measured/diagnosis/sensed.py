@@ -2,21 +2,23 @@
 
 The blind baseline is fitted before any effect is known. Where the force sensor low-pass
 filters the force, its elements bend to the filter's lag (the fit moves limits to long
-break-aways, whose slow build-up looks like a lagging force). Once the selection has kept
-a filter, the elements' knots (:func:`~.baseline.refine_knots`), slip level and limits
-are fitted again with their columns through it, and kept if the kept effects then fit
-the held-out rows better (on the test's trace the knots alone, the level left as it was,
-held out no better than the blind elements' 1.27 N; with the level, 0.708 N for a noise
-of 0.699 N). On sensor_lowpass-142 of the independent generator
-(8.5 Hz, order 3, noise 0.15 N, presliding sines at 1.2 Hz) the true filter held out
-0.82 N on the blind elements and 0.158 N on elements fitted to the same trace without the
-filter; the residual left a 0.87 N tone and read as ``unknown``.
+break-aways, whose slow build-up looks like a lagging force). On sensor_lowpass-142 of
+the independent generator (8.5 Hz, order 3, noise 0.15 N, presliding sines at 1.2 Hz)
+the true filter held out 0.82 N on the blind elements and 0.158 N on elements fitted to
+the same trace without the filter; the residual left a 0.87 N tone and read as
+``unknown``.
 
-The elements are fitted on the measured force, a kept additive effect (a ripple the
-refit placed the elements without, a Stribeck fall the level was chosen with) in it;
-the held-out comparison decides. The search's
-viscous and offset columns are not passed through the filter (an offset passes it
-unchanged; both are dropped after the search).
+Once the selection has kept a filter, the elements' knots (:func:`~.baseline.refine_knots`),
+slip level and limits are fitted again with their columns through it, and kept if the
+kept effects then fit the held-out rows better. On the test's trace the knots alone, the
+level left as it was, held out no better than the blind elements' 1.27 N; with the level,
+0.708 N for a noise of 0.699 N.
+
+The elements are fitted on the measured force, with a kept additive effect still in it
+(a ripple the refit placed the elements without, a Stribeck fall the level was chosen
+with); the held-out comparison decides. The search's viscous and offset columns are not
+passed through the filter (an offset passes it unchanged; both are dropped after the
+search).
 """
 
 from __future__ import annotations
