@@ -69,14 +69,19 @@ class Option:
 
     def columns(self, fp: FittedPart, filters: Sequence[Option] = ()) -> Columns:
         """The additive option's columns on ``fp``, through the chosen ``filters``."""
-        values = fp.effect_basis(self.effect, self.shape)
-        for f in filters:
-            values = f.filter_effect().filter_columns(values, fp.ctx.sample_time_s)
+        values = through(filters, fp.effect_basis(self.effect, self.shape), fp.ctx.sample_time_s)
         return Columns(values, np.full(values.shape[1], self.effect.COEFFICIENT_LOWER))
 
     def with_value(self, key: str, value: float) -> Option:
         """The option with one shape parameter changed."""
         return Option(self.effect, {**self.shape, key: value})
+
+
+def through(filters: Sequence[Option], values: FloatArray, sample_time_s: float) -> FloatArray:
+    """``values`` (columns along axis 0) through the filter options ``filters`` in order."""
+    for f in filters:
+        values = f.filter_effect().filter_columns(values, sample_time_s)
+    return values
 
 
 def options(
@@ -91,10 +96,7 @@ def design(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> list[PartDe
     filters = [o for o in chosen if o.is_filter]
     out = []
     for fp in parts:
-        cols = fp.base
-        for f in filters:
-            values = f.filter_effect().filter_columns(cols.values, fp.ctx.sample_time_s)
-            cols = Columns(values, cols.lower)
+        cols = Columns(through(filters, fp.base.values, fp.ctx.sample_time_s), fp.base.lower)
         additive = [opt.columns(fp, filters) for opt in chosen if not opt.is_filter]
         cols = Columns.join([cols, *additive])
         out.append(PartDesign(cols, fp.part.force_N, fp.part.train, fp.part.held))
@@ -191,10 +193,8 @@ class Scorer:
         """Part ``index``'s design through the chosen filters and the filter ``opt``
         (each filter is linear and acts on every column alike: the design of
         :func:`design` with ``opt`` chosen last)."""
-        values, dt = self._unfiltered[index], self.parts[index].ctx.sample_time_s
-        for f in [*self.filters, opt]:
-            values = f.filter_effect().filter_columns(values, dt)
-        return values
+        return through([*self.filters, opt], self._unfiltered[index],
+                       self.parts[index].ctx.sample_time_s)  # fmt: skip
 
     def _filter_trial(self, opt: Option) -> tuple[FloatArray, FloatArray]:
         """Coefficients and held-out residual of the design with the filter ``opt`` added,

@@ -24,6 +24,7 @@ search).
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 from gms_comp.arrays import FloatArray
 from gms_comp.measured.diagnosis.baseline import (
@@ -34,7 +35,7 @@ from gms_comp.measured.diagnosis.baseline import (
     refine_knots,
 )
 from gms_comp.measured.diagnosis.basis import FreeBasis, Sensor
-from gms_comp.measured.diagnosis.candidates import Option, Scorer
+from gms_comp.measured.diagnosis.candidates import Option, Scorer, through
 from gms_comp.measured.diagnosis.prepare import Prepared
 
 
@@ -60,12 +61,7 @@ def sensed_again(baseline: Baseline, chosen: list[Option]) -> Baseline:
     filters = [o for o in chosen if o.is_filter]
     if not filters or not isinstance(baseline.basis, FreeBasis):
         return baseline
-
-    def sensed(values: FloatArray, sample_time_s: float) -> FloatArray:
-        for f in filters:
-            values = f.filter_effect().filter_columns(values, sample_time_s)
-        return values
-
+    sensed = functools.partial(through, filters)
     basis, theta = fitted_through(baseline.prepared, baseline.basis, sensed)
     info = {**baseline.info, "fitted_through": [o.effect.name for o in filters]}
     trial = _baseline(baseline.prepared, basis, theta, info)
