@@ -98,6 +98,10 @@ def run_one(
         "within_tolerance": None if error is None else error <= TOLERANCE[gen.expected],
         "pair_in_order": pair_in_order(gen, outcome) if case.startswith("pair_") else None,
         "structure": outcome.result.get("structure"),  # why unknown (or not): the findings
+        # what the baseline and the extended model hold out, against the noise
+        "baseline_rms_N": outcome.result.get("baseline_rms_N"),
+        "extended_rms_N": outcome.result.get("extended_rms_N"),
+        "noise_rms_N": outcome.result.get("noise_rms_N"),
         "seconds": outcome.seconds,
     }
     return row
