@@ -11,6 +11,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from gms_comp.atomic import atomic_path, write_text
 from gms_comp.measured.diagnosis.phases import phase_label
@@ -43,7 +44,12 @@ def write_report(diagnosis: Diagnosis, folder: str | Path) -> list[Path]:
         ax.plot(s[key] * scale, ext, ",", color="tab:blue", label="extended model")
         ax.set_xlabel(label)
         ax.set_ylabel("measured - model [N]")
-    axes[0].legend(markerscale=20, loc="upper right")
+    # pixel markers do not scale in a legend: its keys are drawn as dots
+    keys = [
+        Line2D([], [], marker="o", ls="", color=c, label=n)
+        for c, n in (("tab:red", "baseline model"), ("tab:blue", "extended model"))
+    ]
+    axes[0].legend(handles=keys, loc="upper right")
     fig.suptitle(
         f"Force residual: cause {diagnosis.effect}, gain {diagnosis.gain:.1%} (held-out RMS "
         f"{diagnosis.baseline_rms_N:.3g} N -> {diagnosis.extended_rms_N:.3g} N)"
