@@ -259,7 +259,7 @@ def test_ripple_wavelength_is_searched_finer_than_its_grid(periods: float) -> No
     t, x = _triangle(80000, 20e-3, 5e-4)
     ctx = _ctx(t, x)
     grid = fx.PositionRipple.shape_grid(ctx, np.sin(2 * np.pi * x / (40e-3 / periods)), 1e-6)
-    # the fine grids of neighbouring peaks share values up to rounding: one of each
+    # the fine grids of neighbouring scan points share values up to rounding: one of each
     fine = list(np.exp(np.unique(np.round(np.log([s["wavelength_m"] for s in grid]), 9))))
     at = int(np.argmin([abs(np.log(w * periods / 40e-3)) for w in fine]))
     wavelength = math.sqrt(fine[at] * fine[at + 1])

@@ -17,8 +17,9 @@ from gms_comp.runtime.effects.path import Context
 # into position bins of at most an eighth of the shortest wavelength (at most SCAN_BINS).
 SCAN_POINTS = 600
 SCAN_BINS = 20000
-# Around each of the three strongest peaks, FINE_STEPS wavelengths per scan step on
-# either side; then REFINED_STEPS shrinking steps of the local search (see shape_steps).
+# Around each of the three strongest scan points (often neighbours on one peak: their fine
+# grids then share values), FINE_STEPS wavelengths per scan step on either side; then
+# REFINED_STEPS shrinking steps of the local search (see shape_steps).
 FINE_STEPS = 3
 REFINED_STEPS = 4
 # The fewest periods of a ripple over the stroke that the diagnosis fits. At 1.5,
@@ -65,7 +66,7 @@ class PositionRipple(Effect):
     @classmethod
     def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
         """Wavelengths where the residual's projection on sin/cos(2 pi x / lambda) peaks,
-        refined on a fine grid around the three strongest peaks."""
+        refined on a fine grid around the three strongest scan points."""
         lo, hi = cls._range(ctx)
         moving = ctx.moving > 0
         if hi <= lo or not np.any(moving):
