@@ -78,7 +78,7 @@ class Option:
 
 
 def through(filters: Sequence[Option], values: FloatArray, sample_time_s: float) -> FloatArray:
-    """``values`` (columns along axis 0) through the filter options ``filters`` in order."""
+    """``values`` (samples along axis 0) through the filter options ``filters`` in order."""
     for f in filters:
         values = f.filter_effect().filter_columns(values, sample_time_s)
     return values
