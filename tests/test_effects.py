@@ -15,7 +15,7 @@ from gms_comp.gms import GmsParams, simulate
 from gms_comp.measured.diagnosis.candidates import Option
 from gms_comp.measured.diagnosis.selection import local_search
 from gms_comp.runtime import effects as fx
-from gms_comp.runtime.effects import dwell_time, position_ripple
+from gms_comp.runtime.effects import dwell_time, leftover
 
 
 def _ctx(
@@ -241,7 +241,8 @@ def test_ripple_grid_finds_a_ripple_of_few_periods_over_the_stroke(periods: floa
     wavelength = 12e-3 / periods
     residual = 0.8 * np.sin(2 * np.pi * x / wavelength + 0.4)
     ctx = _ctx(t, x)
-    tried = [s["wavelength_m"] for s in fx.PositionRipple.shape_grid(ctx, residual, 1e-6)]
+    left = fx.Leftover.of(residual, ctx.moving > 0)
+    tried = [s["wavelength_m"] for s in fx.PositionRipple.shape_grid(ctx, left, 1e-6)]
     nearest = min(tried, key=lambda w: abs(np.log(w / wavelength)))
     assert nearest == pytest.approx(wavelength, rel=0.01)
     low, high = fx.PositionRipple.shape_bounds(ctx, 1e-6)["wavelength_m"]
@@ -258,7 +259,8 @@ def test_ripple_wavelength_is_searched_finer_than_its_grid(periods: float) -> No
     periods, the held-out RMS 30 % above the noise)."""
     t, x = _triangle(80000, 20e-3, 5e-4)
     ctx = _ctx(t, x)
-    grid = fx.PositionRipple.shape_grid(ctx, np.sin(2 * np.pi * x / (40e-3 / periods)), 1e-6)
+    left = fx.Leftover.of(np.sin(2 * np.pi * x / (40e-3 / periods)), ctx.moving > 0)
+    grid = fx.PositionRipple.shape_grid(ctx, left, 1e-6)
     # the fine grids of neighbouring scan points share values up to rounding: one of each
     fine = list(np.exp(np.unique(np.round(np.log([s["wavelength_m"] for s in grid]), 9))))
     at = int(np.argmin([abs(np.log(w * periods / 40e-3)) for w in fine]))
@@ -282,20 +284,55 @@ def test_ripple_wavelength_is_searched_finer_than_its_grid(periods: float) -> No
 
 
 @given(
-    st.integers(1, 5000),
-    st.floats(1e-4, 0.5),
+    st.integers(0, 6),
     st.integers(0, 2**32 - 1),
+    st.booleans(),
 )
 @settings(max_examples=40, deadline=None)
-def test_ripple_scan_s_blocked_sum_is_the_plain_sum(n: int, top: float, seed: int) -> None:
-    """The scan's projection, summed in blocks, equals the plain sum of n terms (any n,
-    frequencies up to ``top`` cycles per bin), to rounding."""
+def test_a_pair_s_gain_is_what_least_squares_on_the_design_and_the_pair_lowers(
+    width: int, seed: int, degenerate: bool
+) -> None:
+    """On every row (fewer than the scan samples), the gain of each pair of columns is
+    the drop of the squared residual from a least-squares fit on the design to one on
+    the design and the pair (numpy's lstsq); a zero or repeated design column changes
+    nothing."""
     rng = np.random.default_rng(seed)
-    sums = rng.normal(size=n)
-    cycles = np.geomspace(top / 300, top, 37)
-    plain = np.abs(np.exp(-2j * np.pi * np.outer(cycles, np.arange(n))) @ sums)
-    blocked = position_ripple.projection(sums, cycles)
-    assert np.allclose(blocked, plain, rtol=1e-9, atol=1e-9 * float(np.sum(np.abs(sums))))
+    n = 300
+    design = rng.normal(size=(n, width)) * np.geomspace(1e-3, 1e3, width)
+    if degenerate and width >= 2:
+        design[:, 0] = 0.0
+        design[:, 1] = design[:, -1] * 3.0
+    residual = rng.normal(size=n) + design @ rng.normal(size=width)
+    first, second = rng.normal(size=(n, 5)), rng.normal(size=(n, 5))
+    left = fx.Leftover.of(residual, np.ones(n, dtype=bool), design)
+
+    def sse(columns: np.ndarray) -> float:
+        fitted = np.linalg.lstsq(columns, residual, rcond=None)[0]
+        return float(np.sum((residual - columns @ fitted) ** 2))
+
+    expected = [
+        sse(design) - sse(np.column_stack([design, first[:, i], second[:, i]])) for i in range(5)
+    ]
+    assert np.allclose(left.pair_gains(first, second), expected, rtol=1e-7, atol=1e-9)
+
+
+@pytest.mark.parametrize("count", [10, 8000, 8001, 100_000])
+def test_the_scan_reads_blocks_of_consecutive_rows_of_those_it_may_read(count: int) -> None:
+    """Of ``count`` rows it may read (every other row of a longer path), the scan reads
+    all up to ``SCAN_ROWS``; above that about ``SCAN_ROWS`` of them, in runs of
+    ``BLOCK_ROWS`` consecutive ones of those rows, evenly spread."""
+    read = np.zeros(2 * count, dtype=bool)
+    read[1::2] = True
+    rows = leftover.sample_rows(read)
+    assert np.all(read[rows]) and np.all(np.diff(rows) > 0)
+    if count <= leftover.SCAN_ROWS:
+        assert rows.size == count
+        return
+    assert leftover.SCAN_ROWS / 2 <= rows.size <= leftover.SCAN_ROWS
+    at = np.searchsorted(np.flatnonzero(read), rows)
+    starts = at[np.flatnonzero(np.diff(at, prepend=-2) != 1)]
+    assert np.all(starts % leftover.BLOCK_ROWS == 0)
+    assert np.ptp(np.diff(starts)) == 0
 
 
 def test_ripple_form_matches_spec() -> None:

@@ -84,11 +84,11 @@ def through(filters: Sequence[Option], values: FloatArray, sample_time_s: float)
     return values
 
 
-def options(
-    effect: type[fx.Effect], fp: FittedPart, residual_N: FloatArray, presliding_m: float
-) -> list[Option]:
-    """The effect's shape grid as options (``residual_N``: what the design leaves)."""
-    return [Option(effect, s) for s in effect.shape_grid(fp.ctx, residual_N, presliding_m)]
+def options(effect: type[fx.Effect], scorer: Scorer, presliding_m: float) -> list[Option]:
+    """The effect's shape grid on the main part as options, searched in what the design
+    of ``scorer`` leaves (:attr:`Scorer.leftover`)."""
+    grid = effect.shape_grid(scorer.parts[0].ctx, scorer.leftover, presliding_m)
+    return [Option(effect, s) for s in grid]
 
 
 def design(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> list[PartDesign]:
@@ -147,6 +147,15 @@ class Scorer:
     def model(self, index: int = 0) -> FloatArray:
         """The current design's force on part ``index``."""
         return self.designs[index].columns.values @ self.theta
+
+    @functools.cached_property
+    def leftover(self) -> fx.Leftover:
+        """What the design leaves on the main part's training rows in motion, with the
+        design's basis there (for a grid found from it: a ripple's wavelengths)."""
+        fp = self.parts[0]
+        residual = fp.part.force_N - self.model()
+        read = fp.part.train & (fp.ctx.moving > 0)
+        return fx.Leftover.of(residual, read, self.designs[0].columns.values)
 
     def score(self, opt: Option) -> Trial:
         """``opt`` added to the chosen options, fitted on training, scored held out."""

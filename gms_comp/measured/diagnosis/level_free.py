@@ -87,8 +87,7 @@ def stribeck_with_level(
             scorer = Scorer(rebased.parts, chosen)
             if plain is None or scorer.heldout_rms_N < plain.heldout_rms_N:
                 plain = scorer
-            residual = rebased.parts[0].part.force_N - scorer.model()
-            grid = options(fx.Stribeck, rebased.parts[0], residual, rebased.presliding_m)
+            grid = options(fx.Stribeck, scorer, rebased.presliding_m)
             trial = min(scorer.score_all(grid), key=lambda t: t.heldout_rms_N)
             if best is None or trial.heldout_rms_N < best.trial.heldout_rms_N:
                 best = FreeLevel(rebased, scorer, trial, scorer)

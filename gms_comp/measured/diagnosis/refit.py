@@ -408,7 +408,7 @@ def _refine_shape(
         fixed = {k: opt.shape[k] for k in (*opt.effect.SET_BY_SIZE, *DISCRETE) if k in opt.shape}
         grid = {
             tuple(v for k, v in sorted(shape.items()) if k not in fixed): {**shape, **fixed}
-            for shape in opt.effect.shape_grid(parts[0].ctx, np.zeros(0), presliding_m)
+            for shape in opt.effect.shape_grid(parts[0].ctx, fx.Leftover.empty(), presliding_m)
         }
         for shape in grid.values():
             trial, _, cost = settled(Option(opt.effect, shape))

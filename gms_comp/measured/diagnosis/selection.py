@@ -164,12 +164,11 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
     level_from: Baseline | None = None
     while pool and len(chosen) < cfg.max_effects:
         scorer = Scorer(parts, chosen)
-        residual = parts[0].part.force_N - scorer.model()
         last = []
         for i, effect in enumerate(pool):
             if progress:
                 progress(f"round {len(chosen) + 1}: {effect.name} ({i + 1}/{len(pool)})")
-            trials = scorer.score_all(options(effect, parts[0], residual, baseline.presliding_m))
+            trials = scorer.score_all(options(effect, scorer, baseline.presliding_m))
             if not trials:
                 continue
             best = min(trials, key=lambda t: t.heldout_rms_N)

@@ -23,6 +23,7 @@ from gms_comp.runtime.effects.drift import Drift
 from gms_comp.runtime.effects.drive_lag import DriveLag
 from gms_comp.runtime.effects.dwell_time import DwellTime
 from gms_comp.runtime.effects.inertia import Inertia
+from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.offset import Offset
 from gms_comp.runtime.effects.path import DEFAULT_STANDSTILL_SPEED_M_S, Context
 from gms_comp.runtime.effects.position_ripple import PositionRipple
@@ -52,8 +53,9 @@ CATALOGUE: dict[str, type[Effect]] = {
 __all__ = [
     "CATALOGUE", "DEFAULT_STANDSTILL_SPEED_M_S", "Context", "DirectionAsymmetry", "Drift",
     "DriveLag", "DwellTime", "Effect", "ExtensionError", "ExtensionStream", "FilterEffect",
-    "FloatArray", "Inertia", "Offset", "PositionRipple", "ReversalTransient", "SensorLowpass",
-    "Stribeck", "Viscous", "apply_extensions", "effect_from_dict", "effect_to_dict",
+    "FloatArray", "Inertia", "Leftover", "Offset", "PositionRipple", "ReversalTransient",
+    "SensorLowpass", "Stribeck", "Viscous", "apply_extensions", "effect_from_dict",
+    "effect_to_dict",
 ]  # fmt: skip
 
 

@@ -31,6 +31,7 @@ from scipy import signal
 
 from gms_comp.arrays import BoolArray, FloatArray
 from gms_comp.gms import GmsParams
+from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
 
 Shape = dict[str, float]
@@ -74,8 +75,8 @@ class Effect:
         raise NotImplementedError
 
     @classmethod
-    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
-        """Candidate shapes the diagnosis tries (``residual_N``: what is left to explain)."""
+    def shape_grid(cls, ctx: Context, left: Leftover, presliding_m: float) -> list[Shape]:
+        """Candidate shapes the diagnosis tries (``left``: what the design leaves unexplained)."""
         return [{}]
 
     @classmethod

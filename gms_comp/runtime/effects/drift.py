@@ -11,6 +11,7 @@ import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.runtime.effects.base import Effect, Shape, duration
+from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
 
 
@@ -39,7 +40,7 @@ class Drift(Effect):
         return np.array([self.kappa])
 
     @classmethod
-    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
+    def shape_grid(cls, ctx: Context, left: Leftover, presliding_m: float) -> list[Shape]:
         """Time constants from 1/50 to 2 trace lengths."""
         t = duration(ctx)
         return [{"tau_s": float(tau)} for tau in np.geomspace(t / 50, 2 * t, 10)]

@@ -12,6 +12,7 @@ import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.runtime.effects.base import FilterEffect, Shape
+from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
 
 
@@ -34,7 +35,7 @@ class DriveLag(FilterEffect):
         return np.array([1.0 + r, -r]), np.array([1.0])
 
     @classmethod
-    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
+    def shape_grid(cls, ctx: Context, left: Leftover, presliding_m: float) -> list[Shape]:
         """Lags from 0.05 to 3 sample times."""
         dt = ctx.sample_time_s
         return [{"lag_s": float(lag)} for lag in np.geomspace(0.05 * dt, 3 * dt, 12)]

@@ -23,8 +23,7 @@ the diagnosis fits both (``FITTED_FORMS``) and takes one worth an effect.
 The width of each element's window grows with g, its height too; the design column is
 the extra force at a gain ``reach`` (G) divided by G, so that its coefficient ``gamma``
 is the gain when ``reach`` fits it, and with the shape (tau, reach) fixed the effect is
-linear in ``gamma``. It needs the GMS whose limits it raises (``Context.gms``; per sample,
-:meth:`DwellTime.stream` carries the elements' state)."""
+linear in ``gamma``. It needs the GMS it raises (``Context.gms``; per sample, ``stream``)."""
 
 from __future__ import annotations
 
@@ -39,6 +38,7 @@ import numpy as np
 from gms_comp.arrays import FloatArray
 from gms_comp.gms import _PLAY, GmsParams, _level
 from gms_comp.runtime.effects.base import Effect, Shape, duration
+from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import REST_HOLD_S, Context
 
 # The time constants the diagnosis considers (s): far below a servo cycle or above a
@@ -417,7 +417,7 @@ class DwellTime(Effect):
                             self.gamma / self.reach, self.kept_through_turns)  # fmt: skip
 
     @classmethod
-    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
+    def shape_grid(cls, ctx: Context, left: Leftover, presliding_m: float) -> list[Shape]:
         """tau over the decades from :func:`shortest_tau` to the trace's length; gains
         3-30 %; the forms at a turn in ``FITTED_FORMS``."""
         lo, hi = cls.shape_bounds(ctx, presliding_m)["tau_s"]

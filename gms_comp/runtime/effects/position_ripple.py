@@ -11,12 +11,13 @@ import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.runtime.effects.base import Effect, Shape, stroke, top_speed
+from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
 
-# Wavelengths scanned for peaks of the residual's projection; the residual is summed
-# into position bins of at most an eighth of the shortest wavelength (at most SCAN_BINS).
+# Wavelengths scanned for what their sin/cos pair adds to the design (see
+# :mod:`.leftover`), CHUNK of them at a time.
 SCAN_POINTS = 600
-SCAN_BINS = 20000
+CHUNK = 50
 # Around each of the three strongest scan points (often neighbours on one peak: their fine
 # grids then share values), FINE_STEPS wavelengths per scan step on either side; then
 # REFINED_STEPS shrinking steps of the local search (see shape_steps).
@@ -64,21 +65,20 @@ class PositionRipple(Effect):
         return max(4 * top_speed(ctx) * ctx.sample_time_s, 1e-6), stroke(ctx) / MIN_PERIODS
 
     @classmethod
-    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
-        """Wavelengths where the residual's projection on sin/cos(2 pi x / lambda) peaks,
-        refined on a fine grid around the three strongest scan points."""
+    def shape_grid(cls, ctx: Context, left: Leftover, presliding_m: float) -> list[Shape]:
+        """Wavelengths whose sin/cos pair lowers most what the design leaves
+        (:meth:`~.leftover.Leftover.pair_gains`), refined on a fine grid around the three
+        best scan points."""
         lo, hi = cls._range(ctx)
-        moving = ctx.moving > 0
-        if hi <= lo or not np.any(moving):
+        if hi <= lo or left.rows.size == 0:
             return []
-        x = ctx.position_m[moving]
-        r = residual_N[moving] - np.mean(residual_N[moving])
-        width = max(lo / 8, float(np.ptp(x)) / SCAN_BINS, 1e-12)
-        index = np.floor((x - float(np.min(x))) / width).astype(np.int64)
-        sums = np.bincount(index, weights=r).astype(np.float64, copy=False)
+        x = ctx.position_m[left.rows]
         grid = np.geomspace(lo, hi, SCAN_POINTS)
-        power = projection(sums, width / grid)
-        peaks = [i for i in np.argsort(power)[::-1] if 0 < i < grid.size - 1][:3]
+        gain = np.concatenate([
+            left.pair_gains(*_sin_cos(x, grid[at : at + CHUNK]))
+            for at in range(0, grid.size, CHUNK)
+        ])  # fmt: skip
+        peaks = [i for i in np.argsort(gain)[::-1] if 0 < i < grid.size - 1][:3]
         ratio = grid[1] / grid[0]
         return [
             {"wavelength_m": float(v)}
@@ -102,18 +102,7 @@ class PositionRipple(Effect):
         return {"wavelength_m": cls._range(ctx)}
 
 
-def projection(sums: FloatArray, cycles_per_bin: FloatArray) -> FloatArray:
-    """``|sum_k sums[k] exp(-2 pi i f k)|`` for each ``f`` of ``cycles_per_bin``.
-
-    The bins are split into blocks of about sqrt(n): ``exp(-2 pi i f (B q + r))`` is the
-    product of a block's phase and the phase within it, so the n x m complex exponentials
-    of the plain sum become (B + n / B) x m and one matrix product (20 000 bins at 600
-    wavelengths: 0.25-0.9 s a scan before, the same numbers to rounding)."""
-    n = sums.size
-    block = max(1, math.isqrt(n))
-    count = -(-n // block)
-    padded = np.zeros(count * block)
-    padded[:n] = sums
-    within = np.exp(-2j * np.pi * np.outer(cycles_per_bin, np.arange(block)))
-    blocks = np.exp(-2j * np.pi * np.outer(cycles_per_bin, block * np.arange(count)))
-    return np.abs(np.sum(blocks * (within @ padded.reshape(count, block).T), axis=1))
+def _sin_cos(x: FloatArray, wavelengths: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """sin and cos of 2 pi x / lambda, a column per wavelength."""
+    arg = (2 * np.pi) * np.outer(x, 1.0 / wavelengths)
+    return np.sin(arg), np.cos(arg)

@@ -11,6 +11,7 @@ import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.runtime.effects.base import Effect, Shape, stroke
+from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
 
 
@@ -40,7 +41,7 @@ class ReversalTransient(Effect):
         return np.array([self.amplitude_N])
 
     @classmethod
-    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
+    def shape_grid(cls, ctx: Context, left: Leftover, presliding_m: float) -> list[Shape]:
         """Lengths from a tenth of the presliding length to a fifth of the stroke."""
         hi = max(stroke(ctx) / 5, presliding_m)
         return [{"length_m": float(s)} for s in np.geomspace(presliding_m / 10, hi, 14)]

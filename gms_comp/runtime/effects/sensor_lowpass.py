@@ -12,6 +12,7 @@ from scipy import signal
 
 from gms_comp.arrays import FloatArray
 from gms_comp.runtime.effects.base import FilterEffect, Shape
+from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
 
 # Butterworth orders the diagnosis tries (the catalogue's "order n"; sensor front ends are
@@ -44,7 +45,7 @@ class SensorLowpass(FilterEffect):
         return {"cutoff_Hz": float(self.cutoff_Hz), "order": int(self.order)}
 
     @classmethod
-    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
+    def shape_grid(cls, ctx: Context, left: Leftover, presliding_m: float) -> list[Shape]:
         """Cut-offs from 1/1000 to 1/2 of Nyquist (a force sensor's few Hz at a 5 kHz
         sample rate included), orders 1 to 4."""
         nyquist = 0.5 / ctx.sample_time_s

@@ -11,6 +11,7 @@ import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.runtime.effects.base import Effect, Shape, top_speed
+from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
 
 
@@ -40,7 +41,7 @@ class Stribeck(Effect):
         return np.array([self.ratio - 1.0])
 
     @classmethod
-    def shape_grid(cls, ctx: Context, residual_N: FloatArray, presliding_m: float) -> list[Shape]:
+    def shape_grid(cls, ctx: Context, left: Leftover, presliding_m: float) -> list[Shape]:
         """Stribeck speeds from 1/200 to 1/2 of the top speed."""
         vmax = top_speed(ctx)
         return [{"v_s_m_per_s": float(v)} for v in np.geomspace(vmax / 200, vmax / 2, 10)]
