@@ -86,8 +86,9 @@ def through(filters: Sequence[Option], values: FloatArray, sample_time_s: float)
 
 def options(effect: type[fx.Effect], scorer: Scorer, presliding_m: float) -> list[Option]:
     """The effect's shape grid on the main part as options, searched in what the design
-    of ``scorer`` leaves (:attr:`Scorer.leftover`)."""
-    grid = effect.shape_grid(scorer.parts[0].ctx, scorer.leftover, presliding_m)
+    of ``scorer`` leaves (:attr:`Scorer.leftover`) where the effect reads it."""
+    left = scorer.leftover if effect.READS_LEFTOVER else fx.Leftover.empty()
+    grid = effect.shape_grid(scorer.parts[0].ctx, left, presliding_m)
     return [Option(effect, s) for s in grid]
 
 

@@ -59,6 +59,9 @@ class Effect:
     measurement_only: ClassVar[bool] = False
     # Lower bound of every fitted coefficient (its physical meaning, held inside the fit).
     COEFFICIENT_LOWER: ClassVar[float] = -math.inf
+    # Whether :meth:`shape_grid` reads what the design leaves (else it is given
+    # :meth:`Leftover.empty`: its orthonormal basis costs a factorisation per design).
+    READS_LEFTOVER: ClassVar[bool] = False
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:

@@ -37,6 +37,7 @@ class PositionRipple(Effect):
 
     name: ClassVar[str] = "position_ripple"
     SHAPE: ClassVar[tuple[str, ...]] = ("wavelength_m",)
+    READS_LEFTOVER: ClassVar[bool] = True
     amplitude_N: float
     wavelength_m: float
     phase_rad: float
