@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import optimize
 
 from gms_comp.measured.diagnosis import design
@@ -192,3 +194,29 @@ def test_a_design_is_the_same_from_contiguous_or_transposed_columns() -> None:
     np.testing.assert_allclose(a.held_residual(theta), b.held_residual(theta), atol=1e-12)
     residual = p.force_N[p.train] - p.columns.values[p.train] @ theta
     assert abs(a.train_rms(theta) - np.sqrt(np.mean(residual**2))) < 1e-12
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    m=st.integers(1, 22),
+    free_share=st.floats(0.0, 1.0),
+)
+def test_the_bounded_solve_is_lsq_linear_s(seed: int, m: int, free_share: float) -> None:
+    # columns of sizes 1e-3 to 1e3, lower bounds 0, negative or positive where bounded,
+    # -inf where free; the answer must be scipy's BVLS on the whole design's rows
+    rng = np.random.default_rng(seed)
+    n = 4 * m + 10
+    a = rng.normal(size=(n, m)) * 10.0 ** rng.uniform(-3, 3, m)
+    y = a @ rng.normal(size=m) + rng.normal(0.0, 1.0, n)
+    lower = np.where(rng.uniform(size=m) < 0.5, 0.0, rng.normal(size=m))
+    lower = np.where(rng.uniform(size=m) < free_share, -np.inf, lower)
+    expected = optimize.lsq_linear(
+        a, y, bounds=(lower, np.full(m, np.inf)), method="bvls", tol=1e-14
+    ).x
+    got = design.solve(a, y, lower)
+    assert np.all(got >= lower - 1e-9 * np.abs(lower))
+    cost = float(np.sum((a @ got - y) ** 2))
+    best = float(np.sum((a @ expected - y) ** 2))
+    assert cost <= best * (1 + 1e-9) + 1e-12
+    assert np.allclose(a @ got, a @ expected, rtol=1e-6, atol=1e-6 * np.linalg.norm(y))
