@@ -103,23 +103,42 @@ def run_one(
         "extended_rms_N": outcome.result.get("extended_rms_N"),
         "noise_rms_N": outcome.result.get("noise_rms_N"),
         "seconds": outcome.seconds,
+        # what the trace could not tell apart, as the diagnosis says it
+        "caveats": [c["kind"] for c in outcome.result.get("caveats", [])],
     }
     return row
+
+
+def _caveats(rows: list[dict[str, Any]]) -> str:
+    """How many traces carry each kind of caveat, among those named right and wrong
+    (a caveat belongs on the wrong ones)."""
+    kinds = sorted({k for r in rows for k in r.get("caveats") or ()})
+    if not kinds:
+        return "none given"
+    right = [r for r in rows if _right(r)]
+    wrong = [r for r in rows if not _right(r)]
+    return "; ".join(
+        f"{k} on {_count(right, lambda r, k=k: k in (r.get('caveats') or ()))} named right, "
+        f"{_count(wrong, lambda r, k=k: k in (r.get('caveats') or ()))} named wrong"
+        for k in kinds
+    )
 
 
 def _count(rows: list[dict[str, Any]], hit: Any) -> str:
     return f"{sum(bool(hit(r)) for r in rows)}/{len(rows)}" if rows else "-"
 
 
+def _right(row: dict[str, Any]) -> bool:
+    """Named right: the expected effect, or a pair in order (a row that failed, a
+    timeout or a refused trace, has no pair order)."""
+    if row["case"].startswith("pair_"):
+        return bool(row.get("pair_in_order"))
+    return bool(row["named"] == row["expected"])
+
+
 def _case_line(mine: list[dict[str, Any]]) -> str:
     case = mine[0]["case"]
-    hits = _count(
-        mine,
-        # a row that failed (timeout, refused trace) has no pair order
-        lambda r: (
-            r.get("pair_in_order") if case.startswith("pair_") else r["named"] == r["expected"]
-        ),
-    )
+    hits = _count(mine, _right)
     named = ", ".join(
         (r["named"] or r["status"]) + (f" ({' > '.join(r['ranked'])})" if r["ranked"] else "")
         for r in mine
@@ -222,6 +241,7 @@ def table(rows: list[dict[str, Any]]) -> str:
         "- uncatalogued effects called unknown: "
         + _count(unknown, lambda r: r["named"] == "unknown"),
         f"- pairs in the right order: {_count(pairs, lambda r: r.get('pair_in_order'))}",
+        f"- caveats: {_caveats(catalogue + pairs)}",
         f"- timeouts: {_count(rows, lambda r: r['status'] == 'timeout')}, errors: "
         + _count(rows, lambda r: r["status"].startswith("error")),
         f"- time per diagnosis: {_times(seconds)}",

@@ -1,4 +1,5 @@
-"""What a trace's motion cannot tell apart: the speed/direction confound.
+"""What a trace's motion cannot tell apart: the speed/direction confound, and the fit's
+near ties.
 
 Velocity profiles are built by hand here (plateaus joined by linear ramps), so the
 expected answer follows from the profile, not from the code under test."""
@@ -9,8 +10,10 @@ import numpy as np
 import pytest
 
 from gms_comp.measured.diagnosis.coverage import (
+    NEAR_TIE,
     SPEED_OR_DIRECTION,
     caveats,
+    near_tie,
     speed_bands,
     speed_direction_confound,
 )
@@ -77,3 +80,41 @@ def test_a_caveat_is_given_only_where_it_concerns_an_effect_named() -> None:
     assert caveats(v, STILL, ["dwell_time"]) == ()
     assert caveats(v, STILL, []) == ()
     assert set(SPEED_OR_DIRECTION) >= {"stribeck", "direction_asymmetry"}
+
+
+def test_a_rival_that_took_most_of_the_first_effect_s_drop_is_a_near_tie() -> None:
+    # independent stribeck-223: drift and stribeck both took 0.1704 N to 0.1551 N
+    caveat = near_tie("drift", 0.1704, [("drift", 0.1551), ("stribeck", 0.1551)])
+    assert caveat is not None
+    assert caveat.kind == "near_tie"
+    assert caveat.effects == ("drift", "stribeck")
+    assert "0.1704" in caveat.text and caveat.text.count("0.1551") == 2
+    # drops of 1.0 N (first) against NEAR_TIE of it, just above and just below
+    above = 10.0 - NEAR_TIE * 1.0 * 1.001
+    below = 10.0 - NEAR_TIE * 1.0 * 0.999
+    near = near_tie("offset", 10.0, [("offset", 9.0), ("viscous", above), ("drift", below)])
+    assert near is not None and near.effects == ("offset", "viscous")
+
+
+@pytest.mark.parametrize(
+    "first, trials",
+    [
+        ("offset", [("offset", 9.0)]),  # alone
+        ("offset", [("offset", 9.0), ("viscous", 9.5)]),  # half the drop
+        ("inertia", [("offset", 9.0), ("viscous", 9.0)]),  # the refit ranked another first
+        ("offset", [("offset", 10.0), ("viscous", 10.0)]),  # no drop to share
+        ("offset", []),  # no round recorded
+    ],
+)
+def test_no_near_tie_without_a_rival_close_to_the_first_effect(
+    first: str, trials: list[tuple[str, float]]
+) -> None:
+    assert near_tie(first, 10.0, trials) is None
+
+
+def test_a_near_tie_is_a_caveat_only_about_the_first_effect_named() -> None:
+    v = profile((5e-3, 4000), (-5e-3, 4000))  # no speed/direction confound
+    round1 = (0.1704, [("drift", 0.1551), ("stribeck", 0.1551)])
+    assert [c.kind for c in caveats(v, STILL, ["drift", "offset"], round1)] == ["near_tie"]
+    assert caveats(v, STILL, ["offset", "drift"], round1) == ()
+    assert caveats(v, STILL, [], round1) == ()

@@ -153,6 +153,8 @@ def _diagnose(
             validation_extended_N=extended.predictions[1],
         )
     named = [c.effect.name for c in extended.ranked]
+    design_rms, first = selection.first_round
+    near = design_rms, [(t.option.effect.name, t.heldout_rms_N) for t in first]
     return Diagnosis(
         effect=verdict(extended.ranked, structure),
         ranked=extended.ranked,
@@ -170,5 +172,5 @@ def _diagnose(
         # the table's keys are Prepared's fields of the same names
         extension_context={key: getattr(prepared, key) for key in EXTENSION_CONTEXT_KEYS},
         in_context=tuple(c.effect.in_context(main.ctx) for c in extended.ranked),
-        caveats=caveats(main.part.kin.velocity_m_s, prepared.standstill_speed_m_s, named),
+        caveats=caveats(main.part.kin.velocity_m_s, prepared.standstill_speed_m_s, named, near),
     )

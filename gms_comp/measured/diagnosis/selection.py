@@ -80,13 +80,15 @@ class Selection:
     """The output of :func:`select`: the kept options in the order taken, the held-out
     RMS after each, the best trial of every effect in the last round (for the report:
     what was tried and not kept), and the baseline before a Stribeck kept with the
-    slip level free moved it (None if none did)."""
+    slip level free moved it (None if none did); the first round's design held-out RMS
+    and admissible trials (what came near the first effect kept: a caveat)."""
 
     baseline: Baseline
     chosen: tuple[Option, ...]
     heldout_rms_N: tuple[float, ...]
     last_round: tuple[Trial, ...]
     level_from: Baseline | None = None
+    first_round: tuple[float, tuple[Trial, ...]] = (0.0, ())
 
 
 def local_search(
@@ -162,6 +164,7 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
     level = baseline.sliding_force_N
     levels: dict[tuple[float, float], Baseline] = {}  # the level-free grid's, across rounds
     level_from: Baseline | None = None
+    first: tuple[float, tuple[Trial, ...]] = (0.0, ())
     while pool and len(chosen) < cfg.max_effects:
         scorer = Scorer(parts, chosen)
         last = []
@@ -187,6 +190,7 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
                 best = _consistent(scorer, min(refined, key=lambda t: t.heldout_rms_N))
             last.append(best)
         kept = [t for t in last if admissible(cfg, scorer, t, level)]
+        first = first if chosen else (scorer.heldout_rms_N, tuple(kept))
         take = min(kept, key=lambda t: t.heldout_rms_N) if kept else None
         # where Stribeck at the baseline's level is taken, the refit searches its level
         searched = fx.Stribeck in pool and len(chosen) < FREE_LEVEL_ROUNDS
@@ -202,7 +206,7 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
         chosen.append(take.option)
         history.append(take.heldout_rms_N)
         pool.remove(take.option.effect)
-    return Selection(baseline, tuple(chosen), tuple(history), tuple(last), level_from)
+    return Selection(baseline, tuple(chosen), tuple(history), tuple(last), level_from, first)
 
 
 def _free_level(
