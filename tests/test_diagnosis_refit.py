@@ -4,6 +4,8 @@ together."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 from indepgen import make_trace
 
@@ -67,3 +69,29 @@ def test_an_effect_the_joint_fit_leaves_at_nothing_is_not_named(
     assert drift.kappa == pytest.approx(truth["drift"]["kappa"], rel=0.05)
     assert offset.offset_N == pytest.approx(truth["offset"]["offset_N"], rel=0.05)
     assert extended.heldout_rms_N < 1.1 * gen.noise_N
+
+
+@pytest.mark.slow
+def test_a_selection_stopped_and_resumed_is_the_selection_run_through() -> None:
+    """The diagnosis runs the first round alone (it decides how the encoder's counts are
+    read) and resumes from it: every round after must be what a selection run through
+    makes of the same baseline, to the last digit (the level-free grid's baselines
+    carried with it)."""
+    gen = make_trace("pair_offset_stribeck", 121, 20_000)
+    cfg = DiagnosisConfig()
+    trace = Trace("indep", gen.time_s, gen.position_m, gen.force_N)
+    baseline = fit_baseline(prepare(trace, "friction", None, cfg), cfg, None)
+    through = select(baseline, cfg)
+    assert len(through.chosen) >= 2  # the premise: rounds after the first are resumed
+    stopped = select(baseline, dataclasses.replace(cfg, max_effects=1))
+    assert stopped.chosen == through.chosen[:1]
+    resumed = select(baseline, cfg, start=stopped)
+    assert resumed.chosen == through.chosen
+    assert resumed.heldout_rms_N == through.heldout_rms_N
+    assert resumed.baseline is through.baseline or (
+        resumed.baseline.heldout_rms_N == through.baseline.heldout_rms_N
+    )
+    assert [t.heldout_rms_N for t in resumed.last_round] == [
+        t.heldout_rms_N for t in through.last_round
+    ]
+    assert resumed.first_round[0] == through.first_round[0]

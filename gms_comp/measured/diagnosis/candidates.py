@@ -340,3 +340,16 @@ def effect_of(
 def widths(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> list[int]:
     """The column count of each chosen option on the main part (0 for a filter)."""
     return [0 if o.is_filter else o.columns(parts[0]).values.shape[1] for o in chosen]
+
+
+def describe_trials(trials: Sequence[Trial], baseline_rms_N: float) -> list[dict[str, object]]:
+    """The best trial of each effect as JSON (effect, shape, held-out RMS, gain)."""
+    return [
+        {
+            "effect": t.option.effect.name,
+            "shape": dict(t.option.shape),
+            "heldout_rms_N": t.heldout_rms_N,
+            "gain": 1.0 - t.heldout_rms_N / baseline_rms_N if baseline_rms_N else 0.0,
+        }
+        for t in sorted(trials, key=lambda t: t.heldout_rms_N)
+    ]

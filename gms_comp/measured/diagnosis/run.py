@@ -21,6 +21,7 @@ both parts hold every kind of motion), or a whole second trace when one is given
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 
@@ -28,7 +29,7 @@ from threadpoolctl import threadpool_limits
 
 from gms_comp.gms import GmsParams
 from gms_comp.measured.diagnosis.baseline import Baseline, fit_baseline
-from gms_comp.measured.diagnosis.candidates import Scorer
+from gms_comp.measured.diagnosis.candidates import Scorer, describe_trials
 from gms_comp.measured.diagnosis.config import DiagnosisConfig, load_diagnosis_config
 from gms_comp.measured.diagnosis.coverage import caveats
 from gms_comp.measured.diagnosis.gain import lowers
@@ -36,7 +37,7 @@ from gms_comp.measured.diagnosis.phases import phase_masks, residual_by_phase
 from gms_comp.measured.diagnosis.prepare import Prepared, encoder_force_ratio, prepare
 from gms_comp.measured.diagnosis.refit import refit
 from gms_comp.measured.diagnosis.result import Diagnosis, verdict
-from gms_comp.measured.diagnosis.selection import Selection, describe_trials, select
+from gms_comp.measured.diagnosis.selection import Selection, select
 from gms_comp.measured.diagnosis.structure import residual_structure
 from gms_comp.measured.traces import ForceKind, Trace
 from gms_comp.tables.table import EXTENSION_CONTEXT_KEYS
@@ -123,12 +124,15 @@ def _diagnose(
         else:
             as_motion = read, again
     baseline.info.update(info)
-    selection = select(baseline, cfg, say)
+    # the first round alone decides the reading: the rest is selected on one of them only
+    selection = select(baseline, dataclasses.replace(cfg, max_effects=1), say)
     if as_motion is not None and _reads_better(cfg, baseline, as_motion[1], selection):
         say("reading the encoder's counts as motion, judged with the first effect kept")
         prepared, baseline = as_motion
         baseline.info.update(info)
         selection = select(baseline, cfg, say)
+    elif selection.chosen and cfg.max_effects > 1:
+        selection = select(baseline, cfg, say, start=selection)
     say("joint refit")
     extended = refit(selection, cfg)
     say("residual structure")

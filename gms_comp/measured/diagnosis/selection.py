@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TypeVar
 
 import numpy as np
@@ -89,6 +89,8 @@ class Selection:
     last_round: tuple[Trial, ...]
     level_from: Baseline | None = None
     first_round: tuple[float, tuple[Trial, ...]] = (0.0, ())
+    # the level-free grid's baselines fitted so far (a cache, for a selection resumed)
+    levels: dict[tuple[float, float], Baseline] = field(default_factory=dict, compare=False)
 
 
 def local_search(
@@ -152,19 +154,22 @@ def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: floa
     return float(np.max(np.abs(scorer.change(trial)))) >= cfg.min_effect_fraction * level_N
 
 
-def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None = None) -> Selection:
-    """Forward selection of catalogue effects (see the module docstring)."""
+def select(
+    baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None = None,
+    start: Selection | None = None,
+) -> Selection:  # fmt: skip
+    """Forward selection of catalogue effects (see the module docstring); from the
+    rounds of ``start`` where given (``baseline``'s selection stopped by a smaller
+    ``max_effects``), as if it had not stopped."""
+    was = start or Selection(baseline, (), (), ())
     drive = baseline.prepared.drive
     # a drive force has its mass in the baseline; only a drive command can lead the force
     pool = [e for e in fx.CATALOGUE.values() if e is not (fx.Inertia if drive else fx.DriveLag)]
-    chosen: list[Option] = []
-    history: list[float] = []
-    last: list[Trial] = []
+    chosen, history, last = list(was.chosen), list(was.heldout_rms_N), list(was.last_round)
+    pool = [e for e in pool if e not in {o.effect for o in chosen}]
+    baseline, level_from, first, levels = was.baseline, was.level_from, was.first_round, was.levels
     parts = baseline.parts
-    level = baseline.sliding_force_N
-    levels: dict[tuple[float, float], Baseline] = {}  # the level-free grid's, across rounds
-    level_from: Baseline | None = None
-    first: tuple[float, tuple[Trial, ...]] = (0.0, ())
+    level = (level_from or baseline).sliding_force_N
     while pool and len(chosen) < cfg.max_effects:
         scorer = Scorer(parts, chosen)
         last = []
@@ -206,7 +211,9 @@ def select(baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None =
         chosen.append(take.option)
         history.append(take.heldout_rms_N)
         pool.remove(take.option.effect)
-    return Selection(baseline, tuple(chosen), tuple(history), tuple(last), level_from, first)
+    return Selection(
+        baseline, tuple(chosen), tuple(history), tuple(last), level_from, first, levels
+    )
 
 
 def _free_level(
@@ -430,16 +437,3 @@ def agreement(option: Option, coefficients: FloatArray) -> tuple[dict[str, float
         for k in shape
     ]  # fmt: skip
     return agreed, max(factors, default=1.0)
-
-
-def describe_trials(trials: Sequence[Trial], baseline_rms_N: float) -> list[dict[str, object]]:
-    """The best trial of each effect as JSON (effect, shape, held-out RMS, gain)."""
-    return [
-        {
-            "effect": t.option.effect.name,
-            "shape": dict(t.option.shape),
-            "heldout_rms_N": t.heldout_rms_N,
-            "gain": 1.0 - t.heldout_rms_N / baseline_rms_N if baseline_rms_N else 0.0,
-        }
-        for t in sorted(trials, key=lambda t: t.heldout_rms_N)
-    ]
