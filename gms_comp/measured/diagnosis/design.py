@@ -28,8 +28,6 @@ RIDGE = 1e-10
 # Trials scored together read the design once (:meth:`GramDesign.trials`): at most this
 # many extra columns at a time (a 131 000-row batch of them: 64 MB).
 BATCH_COLUMNS = 64
-# Lawson-Hanson's passes per bounded unknown before the BVLS takes over.
-NNLS_ITERATIONS = 10
 
 
 def rms(x: FloatArray) -> float:
@@ -68,40 +66,15 @@ def solve_gram(gram: FloatArray, rhs: FloatArray, lower: FloatArray) -> FloatArr
     d = np.sqrt(np.maximum(np.diag(gram), 0.0))
     scale = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0)
     g = gram * np.outer(scale, scale) + RIDGE * np.eye(scale.size)
-    h = rhs * scale
+    r = linalg.cholesky(g, lower=False, check_finite=False)
+    z = linalg.solve_triangular(r, rhs * scale, trans="T", check_finite=False)
     low = np.where(np.isneginf(lower), -np.inf, lower / scale)
-    bound = ~np.isneginf(low)
-    if not np.any(bound):
-        r = linalg.cholesky(g, lower=False, check_finite=False)
-        z = linalg.solve_triangular(r, h, trans="T", check_finite=False)
-        return np.asarray(linalg.solve_triangular(r, z, check_finite=False) * scale)
-    return np.asarray(_bounded(g, h, low, bound) * scale, dtype=np.float64)
-
-
-def _bounded(g: FloatArray, h: FloatArray, low: FloatArray, bound: BoolArray) -> FloatArray:
-    """min c'gc - 2 c'h with c >= low where ``bound``: the free coefficients solved out
-    (their Schur complement), the bounded ones shifted to c - low >= 0, and that NNLS
-    solved by scipy's Lawson-Hanson. On 1014 solves of a diagnosis (independent
-    viscous-225, 10-18 unknowns, all with bounds) 0.28 ms a solve against 0.82 ms for
-    ``lsq_linear``'s BVLS (3.6 of 35 s), the same coefficients within 7e-12."""
-    free = ~bound
-    g_bb, h_b = g[np.ix_(bound, bound)], h[bound]
-    if np.any(free):
-        cf = linalg.cho_factor(g[np.ix_(free, free)], check_finite=False)
-        g_fb = g[np.ix_(free, bound)]
-        g_bb = g_bb - g_fb.T @ linalg.cho_solve(cf, g_fb, check_finite=False)
-        h_b = h_b - g_fb.T @ linalg.cho_solve(cf, h[free], check_finite=False)
-    r = linalg.cholesky(g_bb, lower=False, check_finite=False)
-    b = linalg.solve_triangular(r, h_b - g_bb @ low[bound], trans="T", check_finite=False)
-    try:
-        shift = optimize.nnls(r, b, maxiter=NNLS_ITERATIONS * b.size)[0]
-    except RuntimeError:  # iteration bound reached: the slower, sure BVLS
-        shift = optimize.lsq_linear(r, b, bounds=(0.0, np.inf), method="bvls").x
-    c = np.empty(h.size)
-    c[bound] = low[bound] + shift
-    if np.any(free):
-        c[free] = linalg.cho_solve(cf, h[free] - g[np.ix_(free, bound)] @ c[bound])
-    return c
+    if np.all(np.isneginf(low)):
+        c = linalg.solve_triangular(r, z, check_finite=False)
+    else:
+        res = optimize.lsq_linear(r, z, bounds=(low, np.full_like(low, np.inf)), method="bvls")
+        c = res.x
+    return np.asarray(c * scale, dtype=np.float64)
 
 
 def solve_gram_sse(
