@@ -587,3 +587,36 @@ def test_a_dwell_gain_is_lost_where_the_move_turns_back_before_the_element_slips
     assert restart + out <= turned <= restart + out + back // 2
     assert np.max(extra[restart:turned]) > 0.1  # the ramp on the way out
     assert np.all(extra[turned:] == 0.0)
+
+
+@pytest.mark.parametrize(
+    "effect",
+    [c for c in fx.CATALOGUE.values() if not issubclass(c, fx.FilterEffect)],
+    ids=lambda c: c.name,
+)
+def test_a_basis_said_to_be_the_motion_s_alone_is_the_same_under_any_gms(
+    effect: type[fx.Effect],
+) -> None:
+    # the diagnosis keeps such a basis for every baseline fitted to the trace: the flag
+    # must be right, and an effect that reads the GMS must not say otherwise
+    rng = np.random.default_rng(3)
+    n = 400
+    t = np.arange(n) * 1e-3
+    v = np.repeat(rng.normal(0, 2e-3, n // 40), 40) * (rng.random(n // 40).repeat(40) > 0.3)
+    x, a = np.cumsum(v) * 1e-3, np.gradient(v, t)
+    one = dataclasses.replace(fx.Context.along(t, x, v, a, np.tanh(x / 1e-5)), gms=ELEMENTS)
+    other = dataclasses.replace(
+        one, gms_force_N=3.0 * np.tanh(x / 2e-5) + 0.5, gms=_other_elements(ELEMENTS)
+    )
+    shape = {k: math.sqrt(lo * hi) for k, (lo, hi) in effect.shape_bounds(one, 1e-6).items()}
+    for key in effect.SHAPE:
+        shape.setdefault(key, 1.0)
+    same = np.array_equal(effect.basis(one, shape), effect.basis(other, shape))
+    assert same is not effect.BASIS_READS_GMS
+
+
+def _other_elements(params: GmsParams) -> GmsParams:
+    """Other elements: limits and stiffnesses changed."""
+    return dataclasses.replace(
+        params, limit_N=params.limit_N * 1.7, stiffness_N_per_m=params.stiffness_N_per_m * 0.6
+    )

@@ -92,12 +92,12 @@ class FittedPart:
         return {}
 
     def effect_basis(self, effect: type[fx.Effect], shape: Mapping[str, float]) -> FloatArray:
-        """``effect``'s basis along this part at ``shape``, read-only and kept for the
-        whole diagnosis, up to ``BASES_KEPT_BYTES`` (the oldest dropped first): the
-        selection scores an effect's grid again in every round and a chosen effect's
-        columns again in every filter trial (a dwell column: 15 ms)."""
+        """``effect``'s basis along this part at ``shape``, read-only and kept (a basis
+        of the motion alone with the part, for every baseline) up to ``BASES_KEPT_BYTES``,
+        the oldest dropped first: the selection scores an effect's grid again in every
+        round and a chosen effect's columns in every filter trial (a dwell column: 15 ms)."""
         key = (effect.name, *sorted(shape.items()))
-        kept = self._bases
+        kept = self._bases if effect.BASIS_READS_GMS else self.part.motion_bases
         if key not in kept:
             values = effect.basis(self.ctx, shape)
             values.flags.writeable = False

@@ -62,6 +62,9 @@ class Effect:
     # Whether :meth:`shape_grid` reads what the design leaves (else it is given
     # :meth:`Leftover.empty`: its orthonormal basis costs a factorisation per design).
     READS_LEFTOVER: ClassVar[bool] = False
+    # Whether :meth:`basis` reads the GMS (its force or its elements): if not, the basis
+    # is the motion's alone, the same under every baseline fitted to it.
+    BASIS_READS_GMS: ClassVar[bool] = True
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:

@@ -20,6 +20,7 @@ class DirectionAsymmetry(Effect):
     """Half the difference ``c_diff_Ns_per_m`` of the viscous slopes by direction."""
 
     name: ClassVar[str] = "direction_asymmetry"
+    BASIS_READS_GMS: ClassVar[bool] = False
     c_diff_Ns_per_m: float
 
     @classmethod

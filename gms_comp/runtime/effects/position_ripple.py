@@ -36,6 +36,7 @@ class PositionRipple(Effect):
     """A ripple of ``amplitude_N`` and ``wavelength_m`` along the position."""
 
     name: ClassVar[str] = "position_ripple"
+    BASIS_READS_GMS: ClassVar[bool] = False
     SHAPE: ClassVar[tuple[str, ...]] = ("wavelength_m",)
     READS_LEFTOVER: ClassVar[bool] = True
     amplitude_N: float

@@ -20,6 +20,7 @@ class ReversalTransient(Effect):
     """Overshoot ``amplitude_N`` decaying over ``length_m`` of travel after a reversal."""
 
     name: ClassVar[str] = "reversal_transient"
+    BASIS_READS_GMS: ClassVar[bool] = False
     SHAPE: ClassVar[tuple[str, ...]] = ("length_m",)
     COEFFICIENT_LOWER: ClassVar[float] = 0.0
     amplitude_N: float
