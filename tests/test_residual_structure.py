@@ -53,7 +53,10 @@ def test_a_local_misfit_of_one_sign_both_ways_is_not_a_friction_spot() -> None:
 
 def _part(x: np.ndarray, d: np.ndarray) -> SimpleNamespace:
     """The fields of a fitted part the spot scan reads (its path)."""
-    return SimpleNamespace(ctx=SimpleNamespace(velocity_m_s=1e-3 * d, position_m=x, direction=d))
+    ctx = SimpleNamespace(
+        velocity_m_s=1e-3 * d, position_m=x, direction=d, acceleration_m_s2=np.gradient(d)
+    )
+    return SimpleNamespace(ctx=ctx)
 
 
 def test_a_bump_outside_the_held_out_blocks_is_still_a_spot() -> None:

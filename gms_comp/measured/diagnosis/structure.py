@@ -21,7 +21,7 @@ import numpy as np
 from gms_comp.arrays import BoolArray, FloatArray
 from gms_comp.measured.diagnosis.baseline import FittedPart
 from gms_comp.measured.diagnosis.design import rms
-from gms_comp.measured.diagnosis.phases import phase_label, phase_masks
+from gms_comp.measured.diagnosis.phases import ACCELERATION_FRACTION, phase_label, phase_masks
 
 BINS = 16
 # per direction: a local feature (a bump, a damaged spot) is a fraction of a mm wide
@@ -59,6 +59,15 @@ SPOT_FRACTION = 0.12
 # the bin, the sign turned, z 57-200 on unknown_bumps-101 and -108): a few samples do.
 SPOT_PARTNER_Z = 3.0
 SPOT_PARTNER_SAMPLES = 5
+# Where the other way is not travelled at all (fewer than SPOT_PARTNER_SAMPLES moving
+# samples there), nothing can be checked against it: a spot crossed one way only is read
+# on the samples sliding at a steady speed (|a| within phases.ACCELERATION_FRACTION of
+# the peak: no inertia or drive misfit), from SPOT_ONE_WAY_SAMPLES of them, and a bin
+# beside it the same way must hold a mean of the same sign SPOT_PARTNER_Z standard errors
+# from zero (a feature wider than one bin, not one noisy bin). unknown_bumps-229 of the
+# independent generator: two bumps crossed once, backward at 12.9 mm/s, 13-18 samples a
+# bin, -2.1 N (12 x the noise, 23 % of the level, z 45-51): no partner bin, `none`.
+SPOT_ONE_WAY_SAMPLES = 10
 
 
 @dataclass(frozen=True)
@@ -213,39 +222,69 @@ def _spot_everywhere(
     v = np.concatenate([fp.ctx.velocity_m_s for fp in parts])
     x = np.concatenate([fp.ctx.position_m for fp in parts])
     d = np.concatenate([fp.ctx.direction for fp in parts])
+    a = np.concatenate([fp.ctx.acceleration_m_s2 for fp in parts])
     moving = _moving(v)
     if np.count_nonzero(moving) <= 4 * BINS:
         return None
-    return _spot(r[moving], x[moving], d[moving], _noise(r))
+    steady = np.abs(a[moving]) <= ACCELERATION_FRACTION * float(np.max(np.abs(a)))
+    return _spot(r[moving], x[moving], d[moving], _noise(r), steady)
 
 
-def _spot(r: FloatArray, x: FloatArray, d: FloatArray, noise: float) -> Finding | None:
+def _binned(r: FloatArray, key: FloatArray, noise: float) -> tuple[FloatArray, ...]:
+    """The keys of ``key``, and the count, mean and z (mean over its standard error) of
+    ``r`` in each."""
+    keys, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    means = np.bincount(inverse, weights=r) / counts
+    return keys, counts.astype(np.float64), means, np.abs(means) * np.sqrt(counts) / noise
+
+
+def _spot(
+    r: FloatArray, x: FloatArray, d: FloatArray, noise: float, steady: BoolArray | None = None
+) -> Finding | None:
     """The largest significant mean of the residual over ``SPOT_WIDTH_M`` of travel in
     one direction (its size is that mean, not an RMS over the trace), or None. Friction
     changes sign with the direction, so a spot must show with the opposite sign, at least
     ``SPOT_PARTNER_Z`` standard errors from zero, where the same bin is travelled the other
-    way (module note)."""
+    way; where it is not travelled, on the ``steady`` samples with a bin beside it
+    (module note)."""
     if noise <= 0.0:
         return None
-    keys, inverse, counts = np.unique(
-        np.floor(x / SPOT_WIDTH_M) * 2 + (d > 0), return_inverse=True, return_counts=True
-    )
-    means = np.bincount(inverse, weights=r) / counts
-    z = np.abs(means) * np.sqrt(counts) / noise
+    key = np.floor(x / SPOT_WIDTH_M) * 2 + (d > 0)
+    keys, counts, means, z = _binned(r, key, noise)
     # the same bin the other way: key + 1 from backward (even), key - 1 from forward
     other = keys + np.where(keys % 2 == 0, 1.0, -1.0)
     at = np.clip(np.searchsorted(keys, other), 0, keys.size - 1)
-    partner = (keys[at] == other) & (np.sign(means[at]) == -np.sign(means))
-    partner &= (counts[at] >= SPOT_PARTNER_SAMPLES) & (z[at] >= SPOT_PARTNER_Z)
+    travelled = (keys[at] == other) & (counts[at] >= SPOT_PARTNER_SAMPLES)
+    partner = travelled & (np.sign(means[at]) == -np.sign(means)) & (z[at] >= SPOT_PARTNER_Z)
     ok = (counts >= SPOT_MIN_SAMPLES) & (z >= SPOT_Z) & partner
-    if not ok.any():
+    found = [(float(abs(means[i])), _words(keys[i], means[i], f"{means[at[i]]:+.3g} N the other "
+                                           "way")) for i in np.flatnonzero(ok)]  # fmt: skip
+    if steady is not None and np.any(steady):
+        one_way = set(keys[~travelled].tolist())
+        keys, counts, means, z = _binned(r[steady], key[steady], noise)
+        seen = np.array([k in one_way for k in keys.tolist()], dtype=bool)
+        beside = np.zeros(keys.size, dtype=bool)
+        for step in (-2.0, 2.0):  # the next bin the same way, either side
+            at = np.clip(np.searchsorted(keys, keys + step), 0, keys.size - 1)
+            beside |= (
+                (keys[at] == keys + step)
+                & (np.sign(means[at]) == np.sign(means))
+                & (z[at] >= SPOT_PARTNER_Z)
+            )
+        ok = seen & beside & (counts >= SPOT_ONE_WAY_SAMPLES) & (z >= SPOT_Z)
+        found += [(float(abs(means[i])), _words(keys[i], means[i], "not crossed the other way"))
+                  for i in np.flatnonzero(ok)]  # fmt: skip
+    if not found:
         return None
-    top = int(np.argmax(np.where(ok, np.abs(means), 0.0)))
-    centre = (np.floor(keys[top] / 2) + 0.5) * SPOT_WIDTH_M
-    way = "forward" if keys[top] % 2 else "backward"
-    return Finding("spot", float(abs(means[top])), f"the level changes locally ({means[top]:+.3g} "
-                   f"N over {1e3 * SPOT_WIDTH_M:.3g} mm near x = {1e3 * centre:.4g} mm moving "
-                   f"{way}, {means[at[top]]:+.3g} N the other way)")  # fmt: skip
+    size, where = max(found)
+    return Finding("spot", size, where)
+
+
+def _words(key: float, mean: float, other: str) -> str:
+    centre = (np.floor(key / 2) + 0.5) * SPOT_WIDTH_M
+    way = "forward" if key % 2 else "backward"
+    return (f"the level changes locally ({mean:+.3g} N over {1e3 * SPOT_WIDTH_M:.3g} mm near "
+            f"x = {1e3 * centre:.4g} mm moving {way}, {other})")  # fmt: skip
 
 
 def _phase_finding(
