@@ -82,3 +82,45 @@ def test_white_noise_and_a_smooth_level_error_are_no_spot_above_the_threshold() 
     spot = st._spot(smooth, x, d, NOISE)
     size = 0.0 if spot is None else spot.rms_N
     assert size < st.SPOT_RATIO * NOISE  # far below a spot's threshold
+
+
+def _one_way(n: int = 40_000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Out over 10 mm at a steady speed and back over the last 5 mm only: positions,
+    directions and the steady samples (the speed's ramps at the ends excluded)."""
+    s = np.linspace(0.0, 1.0, n)
+    x = np.where(s < 2 / 3, 15e-3 * s, 10e-3 - 15e-3 * (s - 2 / 3))
+    d = np.sign(np.gradient(x))
+    steady = np.ones(n, dtype=bool)
+    steady[:50] = steady[-50:] = steady[n * 2 // 3 - 50 : n * 2 // 3 + 50] = False
+    return x, d, steady
+
+
+def test_a_bump_crossed_one_way_only_is_a_spot_where_the_other_way_is_never_travelled() -> None:
+    rng = np.random.default_rng(5)
+    x, d, steady = _one_way()
+    r = rng.normal(0, NOISE, x.size)
+    bump = np.abs(x - 2.3e-3) < 0.15e-3  # 0.3 mm, short of where the way back ends
+    r[bump] += 0.8 * d[bump]
+    assert st._spot(r, x, d, NOISE) is None  # no bin the other way to check it against
+    spot = st._spot(r, x, d, NOISE, steady)
+    assert spot is not None and 0.7 <= spot.rms_N <= 0.9
+    assert "not crossed the other way" in spot.where
+    centre = float(re.search(r"near x = ([-\d.]+) mm", spot.where).group(1))  # type: ignore[union-attr]
+    assert 2.1 < centre < 2.5
+
+
+def test_one_way_only_a_feature_wider_than_a_bin_at_a_steady_speed_is_a_spot() -> None:
+    rng = np.random.default_rng(6)
+    x, d, steady = _one_way()
+    r = rng.normal(0, NOISE, x.size)
+    narrow = (x >= 2.26e-3) & (x < 2.36e-3)  # within one 0.125 mm bin
+    r[narrow] += 0.8 * d[narrow]
+    assert st._spot(r, x, d, NOISE, steady) is None
+    r = rng.normal(0, NOISE, x.size)
+    ramp = np.abs(x - 2.3e-3) < 0.15e-3  # a misfit where the motion is not steady
+    r[ramp] += 0.8
+    assert st._spot(r, x, d, NOISE, steady & ~ramp) is None
+    r = rng.normal(0, NOISE, x.size)
+    back = np.abs(x - 7.3e-3) < 0.15e-3  # travelled both ways, one of them clean
+    r[back & (d > 0)] += 0.8
+    assert st._spot(r, x, d, NOISE, steady) is None
