@@ -255,6 +255,19 @@ def test_a_stribeck_fall_above_a_slip_level_is_scored_with_the_level_free(
     assert error is not None and error <= TOLERANCE["stribeck"], _describe(gen, outcome)
 
 
+def test_a_stribeck_fall_is_scored_at_a_transition_between_the_level_grid_s(
+    trace_dir: Path,
+) -> None:
+    # pair_offset_stribeck-229 (C_v 1.136 over 0.64 mm/s, ratio 1.12 at 2.7 mm/s): on the
+    # level-free grid's transition velocities (15 x apart) Stribeck held out 0.1902 N
+    # beside drift's 0.1951 N, short of the margin, and offset was named alone; at the
+    # best level's transition halfway to the next, 0.1723 N
+    gen, outcome = diagnosed("pair_offset_stribeck", 229, trace_dir)
+    assert pair_in_order(gen, outcome), _describe(gen, outcome)
+    error = main_parameter_error(gen, outcome)
+    assert error is not None and error <= TOLERANCE["offset"], _describe(gen, outcome)
+
+
 def test_a_stribeck_that_only_moves_the_slip_level_is_not_kept(trace_dir: Path) -> None:
     # drift-122 (no Stribeck, C_v 1.219): the level-free search kept a Stribeck at C_v
     # 1.395 second (0.683 N held out against 0.734 N for the drift's design on the grid);

@@ -19,6 +19,7 @@ and the level's own gain (:func:`~.selection._free_level`), and goes on from tha
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,6 +43,11 @@ FREE_LEVEL_RATIO = 1.15
 # on a log grid over the baseline's range, the transition's shape the baseline's.
 FREE_LEVEL_STEPS = (0.05, 0.1, 0.15, 0.2, 0.3)
 FREE_TRANSITIONS = 3
+# Then, at the best level, the transition velocity halfway (in log) to the grid's points
+# either side: the grid's points are 15 x apart (on pair_offset_stribeck-229, C_v 1.136
+# reached over 0.64 mm/s, a fall of ratio 1.12 at 2.7 mm/s, Stribeck held out 0.1902 N
+# on the grid's best, 0.132 mm/s, beside 0.1951 N for drift at the baseline's level: not
+# the margin, `offset` alone was named; 0.1723 N at 0.51 mm/s).
 # Searched in the first rounds only (3.5 s a round on pair_drift_offset-124, run in four
 # rounds there): an effect ranked third or later is small, and its level is the refit's.
 FREE_LEVEL_ROUNDS = 2
@@ -65,7 +71,8 @@ def stribeck_with_level(
     grid of slip levels; None for a table's baseline, or where ``now`` leaves less than
     ``FREE_LEVEL_RATIO`` x the noise held out. ``fitted``: the baselines fitted so far on
     the grid's levels, by (C_v, transition velocity), kept across the selection's rounds
-    (one baseline on one level does not depend on the effects chosen; 15 fits a round)."""
+    (one baseline on one level does not depend on the effects chosen; 15 fits a round,
+    and 2 around the best)."""
     basis = baseline.basis
     if not isinstance(basis, FreeBasis):
         return None
@@ -76,19 +83,33 @@ def stribeck_with_level(
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in baseline.prepared.parts)
     best: FreeLevel | None = None
     plain: Scorer | None = None
+    best_at = (basis.slip_level, basis.transition_velocity_m_s)
+
+    def score(cv: float, vt: float) -> None:
+        nonlocal best, plain, best_at
+        key = (cv, vt)
+        if key not in fitted:
+            level = dataclasses.replace(basis, slip_level=cv, transition_velocity_m_s=vt)
+            fitted[key] = fitted_on(baseline.prepared, level, baseline.info)
+        rebased = fitted[key]
+        scorer = Scorer(rebased.parts, chosen)
+        if plain is None or scorer.heldout_rms_N < plain.heldout_rms_N:
+            plain = scorer
+        grid = options(fx.Stribeck, scorer, rebased.presliding_m)
+        trial = min(scorer.score_all(grid), key=lambda t: t.heldout_rms_N)
+        if best is None or trial.heldout_rms_N < best.trial.heldout_rms_N:
+            best, best_at = FreeLevel(rebased, scorer, trial, scorer), key
+
+    transitions = np.geomspace(*transition_range(vmax), FREE_TRANSITIONS)
     for step in FREE_LEVEL_STEPS:
-        cv = min(basis.slip_level + step, SLIP_LEVEL_RANGE[1])
-        for vt in np.geomspace(*transition_range(vmax), FREE_TRANSITIONS):
-            key = (cv, float(vt))
-            if key not in fitted:
-                level = dataclasses.replace(basis, slip_level=cv, transition_velocity_m_s=key[1])
-                fitted[key] = fitted_on(baseline.prepared, level, baseline.info)
-            rebased = fitted[key]
-            scorer = Scorer(rebased.parts, chosen)
-            if plain is None or scorer.heldout_rms_N < plain.heldout_rms_N:
-                plain = scorer
-            grid = options(fx.Stribeck, scorer, rebased.presliding_m)
-            trial = min(scorer.score_all(grid), key=lambda t: t.heldout_rms_N)
-            if best is None or trial.heldout_rms_N < best.trial.heldout_rms_N:
-                best = FreeLevel(rebased, scorer, trial, scorer)
-    return None if best is None or plain is None else dataclasses.replace(best, plain=plain)
+        for vt in transitions:
+            score(min(basis.slip_level + step, SLIP_LEVEL_RANGE[1]), float(vt))
+    if best is None or plain is None:
+        return None
+    # the best level's transition velocity halfway (in log) to the grid's either side
+    cv, at = best_at
+    half = math.sqrt(float(transitions[1] / transitions[0]))
+    for vt in (at / half, at * half):
+        if transitions[0] < vt < transitions[-1]:
+            score(cv, vt)
+    return dataclasses.replace(best, plain=plain)
