@@ -260,9 +260,9 @@ def _spot(
     found = [(float(abs(means[i])), _words(keys[i], means[i], f"{means[at[i]]:+.3g} N the other "
                                            "way")) for i in np.flatnonzero(ok)]  # fmt: skip
     if steady is not None and np.any(steady):
-        one_way = set(keys[~travelled].tolist())
+        one_way = keys[~travelled]
         keys, counts, means, z = _binned(r[steady], key[steady], noise)
-        seen = np.array([k in one_way for k in keys.tolist()], dtype=bool)
+        seen = np.isin(keys, one_way)
         beside = np.zeros(keys.size, dtype=bool)
         for step in (-2.0, 2.0):  # the next bin the same way, either side
             at = np.clip(np.searchsorted(keys, keys + step), 0, keys.size - 1)

@@ -274,9 +274,13 @@ class Context:
                 traced, path[:, _OUT_RESTING], path[:, _OUT_DIR], path[:, _OUT_S_REV]
             )
         dt = float((t[-1] - t[0]) / (t.size - 1)) if t.size > 1 else 0.0
+        # column-major, so that each path quantity is contiguous: the kernels take
+        # contiguous arrays, and strided columns were copied again on every call (3.7 of
+        # 47 s of a trace); a streaming step's one row needs no copy
         return cls.with_path(
-            t, x, v, np.asarray(acceleration_m_s2, float), np.asarray(gms_force_N, float), path, dt
-        )
+            t, x, v, np.asarray(acceleration_m_s2, float), np.asarray(gms_force_N, float),
+            np.asfortranarray(path), dt,
+        )  # fmt: skip
 
     @functools.cached_property
     def derived(self) -> dict[str, FloatArray]:
@@ -329,19 +333,16 @@ class Context:
         cls, t: FloatArray, x: FloatArray, v: FloatArray, a: FloatArray, f: FloatArray,
         path: FloatArray, sample_time_s: float, gms: GmsParams | None = None,
     ) -> Context:  # fmt: skip
-        """A context from the samples and their precomputed path quantities (each a
-        contiguous copy: the kernels take contiguous arrays, and columns of ``path`` were
-        copied again on every call, 3.7 of 47 s of a trace)."""
-        rows = np.ascontiguousarray(path.T)
+        """A context from the samples and their precomputed path quantities."""
         return cls(
             t, x, v, a, f,
-            direction=rows[_OUT_DIR],
-            distance_since_reversal_m=rows[_OUT_S_REV],
-            dwell_s=rows[_OUT_DWELL],
-            distance_since_start_m=rows[_OUT_S_START],
-            moving=rows[_OUT_MOVING],
-            resting=rows[_OUT_RESTING],
-            elapsed_s=rows[_OUT_ELAPSED],
+            direction=path[:, _OUT_DIR],
+            distance_since_reversal_m=path[:, _OUT_S_REV],
+            dwell_s=path[:, _OUT_DWELL],
+            distance_since_start_m=path[:, _OUT_S_START],
+            moving=path[:, _OUT_MOVING],
+            resting=path[:, _OUT_RESTING],
+            elapsed_s=path[:, _OUT_ELAPSED],
             sample_time_s=sample_time_s,
             gms=gms,
         )  # fmt: skip
