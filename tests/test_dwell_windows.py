@@ -11,6 +11,7 @@ import pytest
 from gms_comp.gms import GmsParams, simulate_elements
 from gms_comp.runtime import effects as fx
 from gms_comp.runtime.effects import dwell_time
+from gms_comp.runtime.effects.path import REST_HOLD_S
 
 
 def _path() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -96,7 +97,7 @@ def test_under_the_play_law_the_held_elements_are_the_gms_kernel_s() -> None:
         held = raised.held_at_starts(ctx)
         resting, dwell = ctx.resting, ctx.dwell_s
         starts = [j for j in range(1, x.size) if resting[j] == 0.0 and resting[j - 1] == 1.0
-                  and dwell[j] >= dwell_time.REST_HOLD_S]  # fmt: skip
+                  and dwell[j] >= REST_HOLD_S]  # fmt: skip
         assert len(starts) == held.shape[0] >= 10
         sub = GmsParams(raised.k, raised.w, slip_level=1.2, transition_velocity_m_s=2e-4,
                         limit_follows_level=True)  # fmt: skip

@@ -32,14 +32,20 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar
 
-import numba
 import numpy as np
 
 from gms_comp.arrays import FloatArray
-from gms_comp.gms import _PLAY, GmsParams, _level
+from gms_comp.gms import GmsParams
 from gms_comp.runtime.effects.base import Effect, Shape, duration
+from gms_comp.runtime.effects.dwell_kernels import (
+    N_TAIL,
+    held_at_starts,
+    levels_along,
+    raised_run,
+    raised_windows,
+)
 from gms_comp.runtime.effects.leftover import Leftover
-from gms_comp.runtime.effects.path import REST_HOLD_S, Context
+from gms_comp.runtime.effects.path import Context
 
 # The time constants the diagnosis considers (s): far below a servo cycle or above a
 # trace's length a dwell gain cannot be told from a constant one.
@@ -59,200 +65,18 @@ REACH_RANGE = (5e-3, 1.5)
 # 0.48-0.91, none: 0.62-0.95).
 SPREAD = 0.1
 SPREAD_ELEMENTS = 5
-# Where a context keeps its GMS's held elements' forces at its starts (they depend on the
-# GMS and the path only, not on the shape).
+# Where a context keeps what its GMS's dwell columns share, for every shape: the held
+# elements' forces at its starts, and the slip level at every sample.
 HELD_KEY = "dwell_time.held_at_starts"
-# Layout of the state after the 6 element vectors: last position, last rest flag, first,
-# the direction of the move since the last start (:func:`_turned`) and where it began.
-_PREV_X, _PREV_REST, _FIRST, _MOVE, _START_X, _N_TAIL = range(6)
-# The move since a start: its direction not yet known, and turned back (the gain lost).
-_UNKNOWN, _TURNED = 0.0, 2.0
+LEVELS_KEY = "dwell_time.levels"
 
 
-@numba.njit(cache=True, inline="always")
-def _turned(move: float, start_x: float, x: float, direction: float) -> tuple[float, bool]:
-    """The move since a start, and whether it turns back at this sample. Its direction
-    is the path's (reversal deadband included) once the position has gone that way from
-    the start (a start against the last move flips the causal path's direction only
-    after the deadband; one dated in hindsight, where the rest ends); the first flip
-    after that is the turn."""
-    if move == _UNKNOWN and direction * (x - start_x) > 0.0:
-        return direction, False
-    if (move == 1.0 or move == -1.0) and direction == -move:
-        return _TURNED, True
-    return move, False
-
-
-@numba.njit(cache=True, inline="always")
-def _rule(
-    fi: float, di: float, gi: float, ki: float, wi: float, dx: float, level: float,
-    play: float,
-) -> tuple[float, float, float]:  # fmt: skip
-    """One element's force, slip direction and hold after a move ``dx``: a Maxwell-slip
-    element (the GMS kernel's rule, rate-independent; ``play``: its limit follows the
-    level) that, while held since a start (hold g >= 1), slips only beyond g times its
-    limit at the current speed, and is the kernel's element again (g = 0) once it has.
-    Branch-free, so that a loop of it vectorises."""
-    sliding = di != 0.0 and di * dx >= 0.0 and play == 0.0
-    stretch = (fi if di == 0.0 or play != 0.0 else di * wi) + ki * dx
-    threshold = wi * level * gi if gi >= 1.0 else (wi * level if play != 0.0 else wi)
-    up = stretch > threshold
-    down = stretch < -threshold
-    f = di * level * wi if sliding else (level * wi if up else (-level * wi if down else stretch))
-    d = di if sliding else (1.0 if up else (-1.0 if down else 0.0))
-    return f, d, (gi if sliding else (0.0 if up or down else gi))
-
-
-@numba.njit(cache=True)
-def _raised_run(
-    k: FloatArray, w: FloatArray, scalars: FloatArray, reach: float, tau: float,
-    keep: float, x: FloatArray, v: FloatArray, resting: FloatArray, dwell: FloatArray,
-    direction: FloatArray, state: FloatArray, out: FloatArray,
-) -> None:  # fmt: skip
-    """The raised elements' force less that of the same elements held to their plain
-    limits, per sample: at a start both stick where they rested and slip at their limit
-    at the current speed, times the gain or times 1, so the difference is the gain's
-    alone (the climb from the stick to the sliding level belongs to the baseline). Where
-    the move turns back before an element has slipped (:func:`_turned`), its gain is
-    lost (unless ``keep``): the raised elements become the held ones.
-    ``state`` (6 n + ``_N_TAIL``: the held elements' forces, slip directions and holds,
-    the raised ones' alike, then the scalars) is advanced in place, so a
-    stream of one-sample calls equals one batch.
-
-    Each element follows :func:`_rule`. The held and the raised elements are one vector
-    of 2 n, updated without branches (so that the compiler vectorises it), then summed
-    in order."""
-    n = k.size
-    play = scalars[_PLAY]
-    tail = 6 * n
-    # fresh local copies, the held elements then the raised ones: they alias nothing
-    kk = np.concatenate((k, k))
-    ww = np.concatenate((w, w))
-    f = np.concatenate((state[0:n], state[3 * n : 4 * n]))
-    d = np.concatenate((state[n : 2 * n], state[4 * n : 5 * n]))
-    g = np.concatenate((state[2 * n : 3 * n], state[5 * n : 6 * n]))
-    for j in range(x.size):
-        if state[tail + _FIRST] == 0.0:
-            state[tail + _PREV_X] = x[j]
-            state[tail + _FIRST] = 1.0
-        dx = x[j] - state[tail + _PREV_X]
-        state[tail + _PREV_X] = x[j]
-        level = _level(abs(v[j]), scalars)
-        if resting[j] == 0.0 and state[tail + _PREV_REST] == 1.0 and dwell[j] >= REST_HOLD_S:
-            # the motion resumes: every element sticks where it rested, held
-            gain = 1.0 + reach * math.log1p(dwell[j] / tau)
-            for i in range(n):
-                d[i], g[i] = 0.0, 1.0
-                d[n + i], g[n + i] = 0.0, gain
-            state[tail + _MOVE], state[tail + _START_X] = _UNKNOWN, x[j]
-        state[tail + _PREV_REST] = resting[j]
-        state[tail + _MOVE], lost = _turned(
-            state[tail + _MOVE], state[tail + _START_X], x[j], direction[j]
-        )
-        if lost and keep == 0.0:
-            for i in range(n):
-                f[n + i], d[n + i], g[n + i] = f[i], d[i], g[i]
-        for i in range(2 * n):
-            f[i], d[i], g[i] = _rule(f[i], d[i], g[i], kk[i], ww[i], dx, level, play)
-        extra = 0.0
-        for i in range(n):
-            extra += f[n + i] - f[i]
-        out[j] = extra
-    state[0:n], state[n : 2 * n], state[2 * n : 3 * n] = f[:n], d[:n], g[:n]
-    state[3 * n : 4 * n], state[4 * n : 5 * n], state[5 * n : 6 * n] = f[n:], d[n:], g[n:]
-
-
-@numba.njit(cache=True)
-def _held_at_starts(
-    k: FloatArray, w: FloatArray, scalars: FloatArray, x: FloatArray, v: FloatArray,
-    resting: FloatArray, dwell: FloatArray,
-) -> FloatArray:  # fmt: skip
-    """The held elements' forces at every start (a row each), from the virgin state:
-    :func:`_raised_run`'s first n elements, which no shape changes."""
-    n = k.size
-    play = scalars[_PLAY]
-    starts = 0
-    for j in range(1, x.size):
-        if resting[j] == 0.0 and resting[j - 1] == 1.0 and dwell[j] >= REST_HOLD_S:
-            starts += 1
-    out = np.zeros((starts, n))
-    f, d, g = np.zeros(n), np.zeros(n), np.zeros(n)
-    row = 0
-    for j in range(x.size):
-        if j > 0 and resting[j] == 0.0 and resting[j - 1] == 1.0 and dwell[j] >= REST_HOLD_S:
-            d[:] = 0.0
-            g[:] = 1.0
-            out[row] = f
-            row += 1
-        dx = x[j] - x[j - 1] if j > 0 else 0.0
-        level = _level(abs(v[j]), scalars)
-        for i in range(n):
-            f[i], d[i], g[i] = _rule(f[i], d[i], g[i], k[i], w[i], dx, level, play)
-    return out
-
-
-@numba.njit(cache=True)
-def _raised_windows(
-    k: FloatArray, w: FloatArray, scalars: FloatArray, reach: float, tau: float,
-    keep: float, x: FloatArray, v: FloatArray, resting: FloatArray, dwell: FloatArray,
-    direction: FloatArray, held: FloatArray, out: FloatArray,
-) -> None:  # fmt: skip
-    """:func:`_raised_run` from the virgin state, bit for bit, element by element only
-    while it differs: once an element's raised copy has slipped to the same force,
-    direction and hold as its held one (or has become it where the move turned back),
-    the two stay equal (and add exactly 0) until the
-    next start, where both take the held force kept at that start (``held``:
-    :func:`_held_at_starts`). On independent traces 2-4 % of the element steps are left,
-    and a column costs 2-5 ms instead of 17-19 ms (with the turn's form; the gain kept
-    through turns keeps elements live through presliding runs)."""
-    n = k.size
-    play = scalars[_PLAY]
-    fh, dh, gh = np.zeros(n), np.zeros(n), np.zeros(n)
-    fr, dr, gr = np.zeros(n), np.zeros(n), np.zeros(n)
-    live = np.zeros(n, dtype=np.int64)  # the elements that differ, in order
-    is_live = np.zeros(n, dtype=np.bool_)
-    m = 0
-    row = 0
-    move, start_x = _TURNED, 0.0
-    for j in range(x.size):
-        if j > 0 and resting[j] == 0.0 and resting[j - 1] == 1.0 and dwell[j] >= REST_HOLD_S:
-            gain = 1.0 + reach * math.log1p(dwell[j] / tau)
-            for i in range(n):
-                if not is_live[i]:
-                    fh[i] = fr[i] = held[row, i]
-                dh[i], gh[i], dr[i], gr[i] = 0.0, 1.0, 0.0, gain
-                live[i], is_live[i] = i, True
-            m = n
-            row += 1
-            move, start_x = _UNKNOWN, x[j]
-        if m == 0:
-            out[j] = 0.0
-            continue
-        move, lost = _turned(move, start_x, x[j], direction[j])
-        if lost and keep == 0.0:
-            for q in range(m):
-                i = live[q]
-                fr[i], dr[i], gr[i] = fh[i], dh[i], gh[i]
-                is_live[i] = False
-            m = 0
-            out[j] = 0.0
-            continue
-        dx = x[j] - x[j - 1] if j > 0 else 0.0
-        level = _level(abs(v[j]), scalars)
-        kept = 0
-        extra = 0.0
-        for q in range(m):
-            i = live[q]
-            fh[i], dh[i], gh[i] = _rule(fh[i], dh[i], gh[i], k[i], w[i], dx, level, play)
-            fr[i], dr[i], gr[i] = _rule(fr[i], dr[i], gr[i], k[i], w[i], dx, level, play)
-            extra += fr[i] - fh[i]
-            if fr[i] == fh[i] and dr[i] == dh[i] and gr[i] == gh[i]:
-                is_live[i] = False
-            else:
-                live[kept] = i
-                kept += 1
-        out[j] = extra
-        m = kept
+def _sub_elements(w: FloatArray, breakaway_m: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The stiffnesses and limits of the sub-elements (``SPREAD_ELEMENTS`` each, in
+    order) that spread elements of limits ``w`` over break-aways around theirs."""
+    spread = np.exp(np.linspace(-SPREAD, SPREAD, SPREAD_ELEMENTS))
+    sub_w = np.ascontiguousarray(np.repeat(w / SPREAD_ELEMENTS, SPREAD_ELEMENTS))
+    return np.ascontiguousarray(sub_w / np.outer(breakaway_m, spread).ravel()), sub_w
 
 
 class RaisedLimits:
@@ -265,10 +89,7 @@ class RaisedLimits:
     ) -> None:
         active = gms.limit_N > 0.0
         w = gms.limit_N[active]
-        spread = np.exp(np.linspace(-SPREAD, SPREAD, SPREAD_ELEMENTS))
-        breakaway = np.outer(w / gms.stiffness_N_per_m[active], spread).ravel()
-        self.w = np.ascontiguousarray(np.repeat(w / SPREAD_ELEMENTS, SPREAD_ELEMENTS))
-        self.k = np.ascontiguousarray(self.w / breakaway)
+        self.k, self.w = _sub_elements(w, w / gms.stiffness_N_per_m[active])
         self.scalars = gms.scalars
         self.tau_s = max(tau_s, TAU_RANGE_S[0])
         self.reach = reach
@@ -278,7 +99,7 @@ class RaisedLimits:
 
     def reset(self) -> None:
         """Virgin elements, no standstill seen."""
-        self.state = np.zeros(6 * self.k.size + _N_TAIL)
+        self.state = np.zeros(6 * self.k.size + N_TAIL)
         # one sample's inputs (position, velocity, rest flag, dwell, direction) and output
         self._sample = np.zeros((5, 1))
         self._out = np.zeros(1)
@@ -286,26 +107,36 @@ class RaisedLimits:
     def run(self, ctx: Context) -> FloatArray:
         """The (scaled) extra force along ``ctx``, continuing from the current state."""
         out = np.empty(ctx.position_m.size)
-        _raised_run(self.k, self.w, self.scalars, self.reach, self.tau_s, self.keep,
-                    *_path(ctx), self.state, out)  # fmt: skip
+        raised_run(self.k, self.w, self.scalars, self.reach, self.tau_s, self.keep,
+                   *_path(ctx), self.state, out)  # fmt: skip
         return self.scale * out
 
-    def held_at_starts(self, ctx: Context) -> FloatArray:
-        """These elements' held forces at ``ctx``'s starts (:func:`_held_at_starts`): the
-        same for every ``tau_s`` and ``reach``."""
-        x, v, resting, dwell, _ = _path(ctx)
-        return _held_at_starts(self.k, self.w, self.scalars, x, v, resting, dwell)
+    def levels(self, ctx: Context) -> FloatArray:
+        """The slip level at every sample of ``ctx`` (:func:`levels_along`)."""
+        return levels_along(_path(ctx)[1], self.scalars)
 
-    def from_rest(self, ctx: Context, held: FloatArray | None = None) -> FloatArray:
+    def held_at_starts(self, ctx: Context, levels: FloatArray | None = None) -> FloatArray:
+        """These elements' held forces at ``ctx``'s starts (:func:`held_at_starts`): the
+        same for every ``tau_s`` and ``reach``; ``levels``: :meth:`levels`, if at hand."""
+        x, _, resting, dwell, _ = _path(ctx)
+        levels = self.levels(ctx) if levels is None else levels
+        return held_at_starts(self.k, self.w, self.scalars, x, levels, resting, dwell)
+
+    def from_rest(
+        self, ctx: Context, held: FloatArray | None = None, levels: FloatArray | None = None
+    ) -> FloatArray:
         """:meth:`run` from the virgin state (this object's state is neither read nor
         changed), the elements stepped only where the raised ones differ
-        (:func:`_raised_windows`); ``held``: :meth:`held_at_starts` on ``ctx``, if at
-        hand."""
-        held = self.held_at_starts(ctx) if held is None else held
-        out = np.empty(ctx.position_m.size)
-        _raised_windows(self.k, self.w, self.scalars, self.reach, self.tau_s, self.keep,
-                        *_path(ctx), held, out)  # fmt: skip
-        return self.scale * out
+        (:func:`raised_windows`); ``held`` (:meth:`held_at_starts`) and ``levels``
+        (:meth:`levels`) on ``ctx``, if at hand."""
+        levels = self.levels(ctx) if levels is None else levels
+        held = self.held_at_starts(ctx, levels) if held is None else held
+        x, _, resting, dwell, direction = _path(ctx)
+        out = np.zeros((x.size, 1))
+        raised_windows(self.k, self.w, self.scalars, self.reach, self.tau_s, self.keep, x,
+                       levels, resting, dwell, direction, held,
+                       np.zeros(self.k.size, dtype=np.int64), out)  # fmt: skip
+        return self.scale * out[:, 0]
 
     def step(
         self, position_m: float, velocity_m_s: float, resting: float, dwell_s: float,
@@ -316,8 +147,8 @@ class RaisedLimits:
         x, v, rest, dwell, turn = self._sample
         x[0], v[0], rest[0], dwell[0] = position_m, velocity_m_s, resting, dwell_s
         turn[0] = direction
-        _raised_run(self.k, self.w, self.scalars, self.reach, self.tau_s, self.keep,
-                    x, v, rest, dwell, turn, self.state, self._out)  # fmt: skip
+        raised_run(self.k, self.w, self.scalars, self.reach, self.tau_s, self.keep,
+                   x, v, rest, dwell, turn, self.state, self._out)  # fmt: skip
         return self.scale * float(self._out[0])
 
 
@@ -365,10 +196,12 @@ class DwellTime(Effect):
             _needs(ctx.gms, "context"), shape["tau_s"], shape["reach"], 1 / shape["reach"], keep
         )
         # the elements are the context's own GMS's, so what it keeps is theirs
-        held = ctx.derived.get(HELD_KEY)
-        if held is None:
-            held = ctx.derived[HELD_KEY] = raised.held_at_starts(ctx)
-        return raised.from_rest(ctx, held)[:, None]
+        if LEVELS_KEY not in ctx.derived:
+            ctx.derived[LEVELS_KEY] = raised.levels(ctx)
+        levels = ctx.derived[LEVELS_KEY]
+        if HELD_KEY not in ctx.derived:
+            ctx.derived[HELD_KEY] = raised.held_at_starts(ctx, levels)
+        return raised.from_rest(ctx, ctx.derived[HELD_KEY], levels)[:, None]
 
     @classmethod
     def from_coefficients(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Effect:
