@@ -39,3 +39,25 @@ def lowers(cfg: DiagnosisConfig, current: FloatArray, new: FloatArray) -> bool:
     return rms1 <= (1.0 - cfg.margin) * rms0 or (
         rms1 <= (1.0 - cfg.small_margin) * rms0 and significance(current, new) >= cfg.significance_t
     )
+
+
+def lowers_locally(
+    cfg: DiagnosisConfig, current: FloatArray, new: FloatArray, noise_N: float
+) -> bool:
+    """Whether an effect that acts on few rows is worth keeping, judged there
+    (``current``, ``new``: the residuals at those rows without and with it, every event
+    by a fit that left it out): significant (``local_significance_t``), and lowering
+    what those rows hold above the force's noise ``noise_N`` (the RMS with the noise's
+    share taken out) by ``local_margin``. The RMS itself, noise included, could not show
+    a gain that stands far out: dwell_time-240 of the independent generator (a 13 %
+    break-away gain after the median standstill, noise 1.4 % of the level) dropped the
+    RMS at its starts 6.5 % only (0.1489 -> 0.1392 N, noise 0.1323 N) with z 7.7; above
+    the noise, 0.068 -> 0.043 N."""
+    if current.size == 0:
+        return False
+    above0, above1 = (np.sqrt(max(rms(r) ** 2 - noise_N**2, 0.0)) for r in (current, new))
+    return (
+        above0 > 0.0
+        and above1 <= (1.0 - cfg.local_margin) * above0
+        and significance(current, new) >= cfg.local_significance_t
+    )

@@ -31,13 +31,13 @@ from gms_comp.arrays import FloatArray
 from gms_comp.measured.diagnosis.baseline import Baseline
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, Trial, options
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
-from gms_comp.measured.diagnosis.design import rms
-from gms_comp.measured.diagnosis.gain import lowers, significance
+from gms_comp.measured.diagnosis.gain import lowers, lowers_locally
 from gms_comp.measured.diagnosis.level_free import (
     FREE_LEVEL_ROUNDS,
     FreeLevel,
     stribeck_with_level,
 )
+from gms_comp.measured.diagnosis.prepare import force_noise
 from gms_comp.runtime import effects as fx
 
 # Relative steps of the local search on shape parameters after the grid, and the most
@@ -134,10 +134,8 @@ def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: floa
         # judged where it acts, at every event by a fit without it: an effect at a few
         # events may have none or one held out (and the held-out RMS not lowered)
         local0, local1 = scorer.left_out(trial)
-        worth = local0.size > 0 and (
-            rms(local1) <= (1.0 - cfg.local_margin) * rms(local0)
-            and significance(local0, local1) >= cfg.local_significance_t
-        )
+        noise = force_noise(scorer.parts[0].part.force_N)
+        worth = lowers_locally(cfg, local0, local1, noise)
     apart = scorer.told_apart(trial.option)
     if worth and apart is not None:
         # and where the motion tells it from the effects it could stand in for
