@@ -45,8 +45,10 @@ class DiagnosisConfig:
     small_margin: float = field(default=0.01, metadata=in_range(0.0, 1.0))
     significance_t: float = field(default=4.0, metadata=in_range(0.0, 1e3))
     # An effect that acts on few samples (a dwell gain at break-aways) is judged where it
-    # acts, every event by a fit without it: kept if it lowers the RMS there by more than
-    # ``local_margin`` (relative) with a z statistic of at least ``local_significance_t``.
+    # acts, every event by a fit without it: kept if it lowers the RMS there, the noise's
+    # share taken out, by more than ``local_margin`` (relative) with a z statistic of at
+    # least ``local_significance_t`` (gain.lowers_locally; the drops below were measured
+    # on the RMS itself, noise included).
     # On 20 effect-free independent traces the best dwell gain's z was at most 2.1 (its
     # drop at most 10 %); on dwell traces with 10-20 starts, 3.4 and 3.6. On ten more
     # (seeds 111-120) z was at most 1.6, but the drop up to 50 % where the gain acted on 6
