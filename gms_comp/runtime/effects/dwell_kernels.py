@@ -1,12 +1,8 @@
 """The dwell-time effect's per-element kernels (:mod:`~gms_comp.runtime.effects.dwell_time`):
 a GMS's elements held since a start, and the same elements with their limits raised, per
 sample (:func:`raised_run`, streaming) or from rest, element by element only while they
-differ (:func:`raised_windows`, a diagnosis column).
-
-Each element's force, at a fixed break-away W_i / k_i, is W_i times that of the same
-element with a unit limit (the rule is homogeneous in the limit and the force): the
-diagnosis computes the unit elements' columns once and weights them by every GMS it
-fits (:class:`~gms_comp.runtime.effects.dwell_time.UnitColumns`)."""
+differ (:func:`raised_windows`, a diagnosis column). The slip level at every sample is
+an input of the batch kernels (:func:`levels_along`), computed once per GMS."""
 
 from __future__ import annotations
 
@@ -15,7 +11,7 @@ import math
 import numba
 import numpy as np
 
-from gms_comp.arrays import FloatArray, IntArray
+from gms_comp.arrays import FloatArray
 from gms_comp.gms import _PLAY, _level
 from gms_comp.runtime.effects.path import REST_HOLD_S
 
@@ -152,7 +148,7 @@ def held_at_starts(
 def raised_windows(
     k: FloatArray, w: FloatArray, scalars: FloatArray, reach: float, tau: float,
     keep: float, x: FloatArray, levels: FloatArray, resting: FloatArray, dwell: FloatArray,
-    direction: FloatArray, held: FloatArray, column: IntArray, out: FloatArray,
+    direction: FloatArray, held: FloatArray, out: FloatArray,
 ) -> None:  # fmt: skip
     """:func:`raised_run` from the virgin state, element by element only while it
     differs: once an element's raised copy has slipped to the same force, direction and
@@ -163,9 +159,9 @@ def raised_windows(
     turn's form; the gain kept through turns keeps elements live through presliding
     runs). While both copies stick at one force, only the held one is stepped: most of
     what is left on a step-and-stop trace's rests, where the widest elements never slip
-    (27 -> 20 ms on dwell_time-235 of the independent generator, 50 elements). Element
-    i's difference is added to ``out[:, column[i]]`` (zeros on entry); into one column,
-    bit for bit :func:`raised_run`'s. ``levels``: :func:`levels_along`."""
+    (27 -> 20 ms on dwell_time-235 of the independent generator, 50 elements). The
+    elements' differences are added to ``out`` (zeros on entry): bit for bit
+    :func:`raised_run`'s. ``levels``: :func:`levels_along`."""
     n = k.size
     play = scalars[_PLAY]
     fh, dh, gh = np.zeros(n), np.zeros(n), np.zeros(n)
@@ -209,7 +205,7 @@ def raised_windows(
                 fr[i] = fh[i]
             else:
                 fr[i], dr[i], gr[i] = _rule(fr[i], dr[i], gr[i], k[i], w[i], dx, level, play)
-                out[j, column[i]] += fr[i] - fh[i]
+                out[j] += fr[i] - fh[i]
             if fr[i] == fh[i] and dr[i] == dh[i] and gr[i] == gh[i]:
                 is_live[i] = False
             else:

@@ -132,11 +132,10 @@ class RaisedLimits:
         levels = self.levels(ctx) if levels is None else levels
         held = self.held_at_starts(ctx, levels) if held is None else held
         x, _, resting, dwell, direction = _path(ctx)
-        out = np.zeros((x.size, 1))
+        out = np.zeros(x.size)
         raised_windows(self.k, self.w, self.scalars, self.reach, self.tau_s, self.keep, x,
-                       levels, resting, dwell, direction, held,
-                       np.zeros(self.k.size, dtype=np.int64), out)  # fmt: skip
-        return self.scale * out[:, 0]
+                       levels, resting, dwell, direction, held, out)  # fmt: skip
+        return self.scale * out
 
     def step(
         self, position_m: float, velocity_m_s: float, resting: float, dwell_s: float,
