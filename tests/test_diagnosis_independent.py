@@ -320,6 +320,15 @@ def test_a_mass_is_fitted_where_the_acceleration_is_large(trace_dir: Path) -> No
     assert error is not None and error <= 0.05, _describe(gen, outcome)
 
 
+def test_a_mass_on_short_ramps_is_not_fitted_high(trace_dir: Path) -> None:
+    # 239 (1 kHz, half the acceleration's energy above 50 Hz): on the benchmark's
+    # five-sample second difference, 0.543 kg for 0.469 (0.16 off)
+    gen, outcome = diagnosed("inertia", 239, trace_dir)
+    assert outcome.named == "inertia", _describe(gen, outcome)
+    error = main_parameter_error(gen, outcome)
+    assert error is not None and error <= 0.08, _describe(gen, outcome)
+
+
 @pytest.mark.parametrize(("seed", "confounded"), [(119, True), (101, False)])
 def test_a_trace_that_cannot_tell_speed_from_direction_says_so(
     seed: int, confounded: bool, trace_dir: Path

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
 
 from gms_comp.measured.diagnosis.motion import kinematics
 from gms_comp.measured.traces import Trace
@@ -46,9 +47,43 @@ def test_reflected_ends_change_the_acceleration_only_and_not_its_inside() -> Non
     # position and velocity keep the benchmark's edges, bit for bit, ends included
     assert np.array_equal(ours.position_m, benchmark.position_m)
     assert np.array_equal(ours.velocity_m_s, benchmark.velocity_m_s)
+    # inside, only the second difference's width differs (three samples, not five):
+    # under 0.1 % of the 1.2 m/s^2 peak on a 50 ms ramp
     inside = slice(500, -500)
     np.testing.assert_allclose(
-        ours.acceleration_m_s2[inside], benchmark.acceleration_m_s2[inside], atol=1e-6
+        ours.acceleration_m_s2[inside], benchmark.acceleration_m_s2[inside], atol=1e-3
     )
     assert not np.allclose(ours.acceleration_m_s2[-20:], benchmark.acceleration_m_s2[-20:])
     assert ours.acceleration_m_s2.shape == trace.position_m.shape
+
+
+def _fast_ramps(rate_Hz: float, ramp_s: float) -> tuple[Trace, np.ndarray]:
+    """Back-and-forth moves whose raised-cosine acceleration pulses last ``ramp_s`` (a few
+    samples at ``rate_Hz``), the position integrated on a 50 x finer grid and read by a
+    5 nm encoder; the trace and the true acceleration at its samples."""
+    fine = 50
+    t_fine = np.arange(4000 * fine) / (rate_Hz * fine)
+    accel_fine = np.zeros_like(t_fine)
+    for k in range(8):
+        u = np.clip((t_fine - 0.5 - 0.4 * k) / ramp_s, 0.0, 1.0)
+        accel_fine += (-1) ** k * np.where((u > 0) & (u < 1), 5.0 * (1 - np.cos(2 * np.pi * u)), 0)
+    velocity = cumulative_trapezoid(accel_fine, t_fine, initial=0.0)
+    position = cumulative_trapezoid(velocity, t_fine, initial=0.0)[::fine]
+    t = t_fine[::fine]
+    quantised = np.round(position / 5e-9) * 5e-9
+    return Trace("fast ramps", t, quantised, np.zeros_like(t)), accel_fine[::fine]
+
+
+def test_a_mass_fitted_on_short_ramps_is_not_biased_by_the_difference() -> None:
+    # independent inertia-239 (1 kHz, half its acceleration's energy above 50 Hz): the
+    # mass came out 16 % high on the benchmark's five-sample second difference
+    rate = 1000.0
+    trace, accel = _fast_ramps(rate, 0.008)
+
+    def fitted_over_true(kin_accel: np.ndarray) -> float:  # F = m a fitted on the estimate
+        return float(np.dot(kin_accel, accel) / np.dot(kin_accel, kin_accel))
+
+    diagnosis = kinematics(trace, 0.45 * rate, 0.45 * rate).acceleration_m_s2
+    benchmark = kinematics(trace, 0.45 * rate, 0.45 * rate, reflected=False).acceleration_m_s2
+    assert abs(fitted_over_true(diagnosis) - 1.0) < 0.03
+    assert fitted_over_true(benchmark) > 1.05  # sinc(2 f dt)^2: what the old column lost
