@@ -220,3 +220,34 @@ def test_the_bounded_solve_is_lsq_linear_s(seed: int, m: int, free_share: float)
     best = float(np.sum((a @ expected - y) ** 2))
     assert cost <= best * (1 + 1e-9) + 1e-12
     assert np.allclose(a @ got, a @ expected, rtol=1e-6, atol=1e-6 * np.linalg.norm(y))
+
+
+def test_the_bounded_solve_falls_back_to_bvls_at_the_nnls_iteration_limit(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # scipy's nnls raises at its iteration limit (3 n); the answer must still be the optimum
+    rng = np.random.default_rng(7)
+    a = rng.normal(size=(60, 8))
+    y = a @ rng.normal(size=8) + rng.normal(0.0, 0.5, 60)
+    lower = np.array([0.0, 0.0, -1.0, 0.5, 0.0, -np.inf, 0.0, -np.inf])
+    expected = design.solve(a, y, lower)
+
+    def limit(*_: object, **__: object) -> None:
+        raise RuntimeError("Maximum number of iterations reached.")
+
+    monkeypatch.setattr(design.optimize, "nnls", limit)
+    got = design.solve(a, y, lower)
+    assert np.any(np.isclose(expected, lower))  # some bound is active: not a plain solve
+    assert np.allclose(got, expected, rtol=1e-8, atol=1e-10)
+
+
+def test_an_empty_or_repeated_column_leaves_the_bounded_solve_defined() -> None:
+    # a zero column and a duplicated one: the ridge keeps the solve finite, the fit exact
+    rng = np.random.default_rng(3)
+    base = rng.normal(size=(200, 3))
+    a = np.column_stack([base, np.zeros(200), base[:, 0]])
+    y = base @ np.array([1.0, -2.0, 0.5])
+    got = design.solve(a, y, np.array([0.0, -np.inf, -np.inf, 0.0, 0.0]))
+    assert np.all(np.isfinite(got))
+    assert np.allclose(a @ got, y, atol=1e-6)
+    assert abs(got[3]) < 1e-6

@@ -62,19 +62,45 @@ def solve_gram(gram: FloatArray, rhs: FloatArray, lower: FloatArray) -> FloatArr
     """min c'Gc - 2 c'g with c >= lower, from the Gram matrix G and g = A'y.
 
     Columns are scaled to unit norm first (the bounds with them), so that element
-    columns of very different sizes share one tolerance."""
+    columns of very different sizes share one tolerance. The free coefficients (lower
+    -inf) are eliminated (Schur complement), the bounded ones shifted to their bounds,
+    and the rest is a non-negative least-squares problem on the Cholesky factor, solved
+    by scipy's compiled Lawson-Hanson :func:`scipy.optimize.nnls` (about 0.3 ms for 18
+    unknowns; ``lsq_linear``'s BVLS, in Python, took 1 ms, and a diagnosis solves
+    thousands)."""
     d = np.sqrt(np.maximum(np.diag(gram), 0.0))
     scale = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0)
     g = gram * np.outer(scale, scale) + RIDGE * np.eye(scale.size)
-    r = linalg.cholesky(g, lower=False, check_finite=False)
-    z = linalg.solve_triangular(r, rhs * scale, trans="T", check_finite=False)
-    low = np.where(np.isneginf(lower), -np.inf, lower / scale)
-    if np.all(np.isneginf(low)):
-        c = linalg.solve_triangular(r, z, check_finite=False)
-    else:
-        res = optimize.lsq_linear(r, z, bounds=(low, np.full_like(low, np.inf)), method="bvls")
-        c = res.x
+    b = rhs * scale
+    free = np.isneginf(lower)
+    if free.all():
+        c = linalg.cho_solve(linalg.cho_factor(g, check_finite=False), b, check_finite=False)
+        return np.asarray(c * scale, dtype=np.float64)
+    bounded = ~free
+    g_bb, b_b = g[np.ix_(bounded, bounded)], b[bounded]
+    if free.any():
+        g_fb = g[np.ix_(free, bounded)]
+        factor = linalg.cho_factor(g[np.ix_(free, free)], check_finite=False)
+        w = linalg.cho_solve(factor, np.column_stack([g_fb, b[free]]), check_finite=False)
+        g_bb = g_bb - g_fb.T @ w[:, :-1]
+        b_b = b_b - g_fb.T @ w[:, -1]
+    low = lower[bounded] / scale[bounded]
+    c = np.empty_like(b)
+    c[bounded] = low + _nnls_gram(g_bb, b_b - g_bb @ low)
+    if free.any():
+        c[free] = w[:, -1] - w[:, :-1] @ c[bounded]
     return np.asarray(c * scale, dtype=np.float64)
+
+
+def _nnls_gram(gram: FloatArray, rhs: FloatArray) -> FloatArray:
+    """min x'Gx - 2 x'g with x >= 0 (G positive definite)."""
+    r = linalg.cholesky(gram, lower=False, check_finite=False)
+    z = linalg.solve_triangular(r, rhs, trans="T", check_finite=False)
+    try:
+        x, _ = optimize.nnls(r, z)
+    except RuntimeError:  # its iteration limit (3 n): the slower BVLS, which has none
+        x = optimize.lsq_linear(r, z, bounds=(0.0, np.inf), method="bvls").x
+    return np.asarray(x, dtype=np.float64)
 
 
 def solve_gram_sse(
