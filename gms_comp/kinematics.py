@@ -37,9 +37,9 @@ class Kinematics:
     def __len__(self) -> int:
         return len(self.time_s)
 
-    def slice(self, start: int, stop: int | None = None) -> Kinematics:
-        """The kinematics of samples ``start`` to ``stop``."""
-        s = slice(start, stop)
+    def slice(self, start: int, stop: int | None = None, step: int = 1) -> Kinematics:
+        """The kinematics of every ``step``-th sample from ``start`` to ``stop``."""
+        s = slice(start, stop, step)
         return Kinematics(
             self.time_s[s], self.position_m[s], self.velocity_m_s[s], self.acceleration_m_s2[s]
         )

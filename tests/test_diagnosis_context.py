@@ -24,6 +24,9 @@ from gms_comp.measured.traces import Trace
 from gms_comp.runtime import effects as fx
 from gms_comp.runtime.effects.path import REST_HOLD_S
 
+# The truth is indexed by sample: every sample fitted (not every k-th of a fast trace).
+EVERY_SAMPLE = DiagnosisConfig(fit_rate_Hz=0.0)
+
 
 @functools.cache
 def _context(seed: int, cfg: DiagnosisConfig) -> tuple[fx.Context, np.ndarray, np.ndarray]:
@@ -71,7 +74,7 @@ COARSE_ENCODER = pytest.mark.xfail(
 def test_the_dwell_force_falls_where_the_context_is_moving_with_the_true_dwell(
     seed: int,
 ) -> None:
-    ctx, extra, true_dwell = _context(seed, DiagnosisConfig())
+    ctx, extra, true_dwell = _context(seed, EVERY_SAMPLE)
     energy = extra**2
     seen = ctx.resting == 0.0
     assert energy[seen].sum() >= 0.95 * energy.sum()
@@ -85,7 +88,7 @@ def test_the_dwell_force_falls_where_the_context_is_moving_with_the_true_dwell(
 
 def test_a_speed_threshold_alone_misses_the_dwell_force() -> None:
     # the rule before the rest band: resting until 1 % of the peak speed is exceeded
-    ctx, extra, _ = _context(101, DiagnosisConfig(rest_band_steps=0.0))
+    ctx, extra, _ = _context(101, DiagnosisConfig(rest_band_steps=0.0, fit_rate_Hz=0.0))
     energy = extra**2
     assert energy[ctx.resting == 0.0].sum() < 0.3 * energy.sum()
 
@@ -96,7 +99,7 @@ def test_no_rest_is_dated_where_the_truth_does_not_stop(seed: int) -> None:
     # turnaround (the truth's velocity only crosses zero): before the turnaround rule the
     # context dated 2-20 such rests on seeds 103, 104, 106, 107 and 110
     gen = make_trace("dwell_time", seed)
-    ctx, _, _ = _context(seed, DiagnosisConfig())
+    ctx, _, _ = _context(seed, EVERY_SAMPLE)
     moving = baseline(seed)[0].velocity_m_s != 0.0
     true_starts = gen.time_s[np.flatnonzero(moving[1:] & ~moving[:-1]) + 1]
     ours = np.flatnonzero((ctx.resting[1:] == 0.0) & (ctx.resting[:-1] == 1.0)) + 1
@@ -127,7 +130,7 @@ def test_both_parts_hold_starts_after_a_standstill(seed: int) -> None:
     traces every third block from the second held none)."""
     gen = make_trace("dwell_time", seed)
     part = prepare(Trace("indep", gen.time_s, gen.position_m, gen.force_N), "friction",
-                   None, DiagnosisConfig()).main  # fmt: skip
+                   None, EVERY_SAMPLE).main  # fmt: skip
     starts = _truth_starts(seed)
     assert starts.size >= 3
     assert np.any(part.held[starts]) and np.any(part.train[starts])
@@ -140,7 +143,7 @@ def test_the_training_rows_reach_the_top_speed(seed: int) -> None:
     69, 19 and 52 % of the top speed on seeds 104, 105 and 109."""
     gen = make_trace("none", seed)
     part = prepare(Trace("indep", gen.time_s, gen.position_m, gen.force_N), "friction",
-                   None, DiagnosisConfig()).main  # fmt: skip
+                   None, EVERY_SAMPLE).main  # fmt: skip
     speed = np.abs(baseline(seed)[0].velocity_m_s)
     assert float(np.max(speed[part.train])) >= 0.8 * float(np.max(speed))
 
@@ -152,7 +155,7 @@ def test_the_training_rows_reach_the_top_acceleration(seed: int) -> None:
     ramps, and the training rows reached 8 % of them."""
     gen = make_trace("none", seed)
     part = prepare(Trace("indep", gen.time_s, gen.position_m, gen.force_N), "friction",
-                   None, DiagnosisConfig()).main  # fmt: skip
+                   None, EVERY_SAMPLE).main  # fmt: skip
     accel = np.abs(baseline(seed)[0].acceleration_m_s2)
     assert float(np.max(accel[part.train])) >= 0.8 * float(np.max(accel))
 
@@ -208,7 +211,7 @@ def test_seed_159_holds_out_half_its_fast_moves() -> None:
     in one block; half of them are held out and the training rows keep the top speed."""
     gen = make_trace("none", 159)
     part = prepare(Trace("indep", gen.time_s, gen.position_m, gen.force_N), "friction",
-                   None, DiagnosisConfig()).main  # fmt: skip
+                   None, EVERY_SAMPLE).main  # fmt: skip
     speed = np.abs(part.kin.velocity_m_s)
     fast = speed >= 0.2 * float(np.max(speed))
     assert 0.3 <= np.sum(fast & part.held) / np.sum(fast) <= 0.7
@@ -252,7 +255,7 @@ def test_a_hard_stop_is_not_a_reversal() -> None:
     held = np.sign(truth.velocity_m_s)
     for k in range(1, held.size):
         held[k] = held[k] or held[k - 1]
-    cfg = DiagnosisConfig()
+    cfg = EVERY_SAMPLE
     prepared = prepare(Trace("indep", gen.time_s, gen.position_m, gen.force_N), "friction",
                        None, cfg)  # fmt: skip
     part = prepared.main

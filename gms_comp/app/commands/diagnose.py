@@ -173,7 +173,8 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
     """The diagnosis JSON as a short text for people."""
     b = doc["baseline"]
     lines = [
-        f"diagnosis of {doc['trace']} ({samples} samples, {kind} force), {doc['seconds']:.1f} s",
+        f"diagnosis of {doc['trace']} ({samples} samples{_every(b)}, {kind} force), "
+        f"{doc['seconds']:.1f} s",
         f"baseline: {b['model'].replace('_', ' ')}, sliding force {b['sliding_force_N']:.4g} N, "
         f"slip level C_v {b['slip_level']:.3g}"
         f"{' (the stick limit follows it)' if b.get('limit_follows_level') else ''}, "
@@ -329,3 +330,9 @@ def _benchmark_errors(trace: Trace, validation: Trace | None, result: Diagnosis)
             ),
         }
     return out
+
+
+def _every(baseline: Mapping[str, Any]) -> str:
+    """How many of the samples were fitted, if not all."""
+    every = int(baseline.get("fitted_every", 1))
+    return f", 1 in {every} fitted (fit_rate_Hz)" if every > 1 else ""

@@ -76,6 +76,13 @@ STEP_SHARE = 1e-3
 STEP_TOLERANCE = 0.05
 QUANTISED_SHARE = 0.9
 
+# At most every this many samples are fitted (DiagnosisConfig.fit_rate_Hz): a dwell gain
+# shows in the few samples of a break-away, judged there by their RMS. On the independent
+# generator's dwell_time-118 (4.8 kHz, a gain of 0.09, peaks 3 x the noise) every 3rd
+# sample read `none`, every 2nd the gain (0.073); on dwell_time-248 (3.6 kHz) every 4th
+# or 6th read `none`; on dwell_time-247 every 5th or 6th ran gamma to its bound.
+MAX_FITTED_EVERY = 2
+
 
 @dataclass(frozen=True)
 class Part:
@@ -116,6 +123,7 @@ class Prepared:
     rest_band_m: float
     encoder_step_m: float = 0.0  # 0: the position is not on an encoder's counts
     dequantised: bool = False  # the kinematics are from the counts read as motion
+    fitted_every: int = 1  # the trace's samples fitted: every k-th (DiagnosisConfig.fit_rate_Hz)
 
     @property
     def main(self) -> Part:
@@ -230,6 +238,7 @@ def prepare(
         trace = _dequantised(trace, step)
         validation = None if validation is None else _dequantised(validation, step)
     kin = kinematics(trace, cutoff, accel_cutoff)
+    trace, kin, every = fitted_rows(trace, kin, cfg.fit_rate_Hz)
     deadband = cfg.reversal_deadband_steps * resolution
     still = cfg.standstill_speed_fraction * float(np.max(np.abs(kin.velocity_m_s)))
     check_usable(trace, kin, deadband, still)
@@ -238,7 +247,9 @@ def prepare(
         held = _held_rows(kin, still, deadband, cfg, resolution, trace) if held is None else held
         parts: tuple[Part, ...] = (Part(kin, trace.force_N, ~held, held, trace.position_m),)
     else:
-        vkin = kinematics(validation, cutoff, accel_cutoff)
+        validation, vkin, _ = fitted_rows(
+            validation, kinematics(validation, cutoff, accel_cutoff), cfg.fit_rate_Hz
+        )
         check_usable(validation, vkin, deadband, still)
         m = len(validation)
         parts = (
@@ -249,8 +260,20 @@ def prepare(
         )  # fmt: skip
     rest_band = cfg.rest_band_steps * resolution
     return Prepared(
-        parts, drive, force_kind, still, deadband, resolution, rest_band, step, read
+        parts, drive, force_kind, still, deadband, resolution, rest_band, step, read, every
     )  # fmt: skip
+
+
+def fitted_rows(trace: Trace, kin: Kinematics, rate_Hz: float) -> tuple[Trace, Kinematics, int]:
+    """Every k-th sample of ``trace`` (under its own name) and of its kinematics, and k:
+    floor(its sample rate / ``rate_Hz``), at most ``MAX_FITTED_EVERY``; 1 for ``rate_Hz``
+    0 or a slower trace."""
+    every = int(1.0 / (trace.sample_time_s * rate_Hz) + 1e-6) if rate_Hz > 0.0 else 1
+    every = min(every, MAX_FITTED_EVERY)
+    if every <= 1:
+        return trace, kin, 1
+    picked = dataclasses.replace(trace.slice(0, len(trace), every), source=trace.source)
+    return picked, kin.slice(0, None, every), every
 
 
 def _held_rows(

@@ -110,7 +110,7 @@ def _diagnose(
     baseline = fit_baseline(prepared, cfg, table)
     # counts that show in the GMS driven by them: read as motion, if that fits better
     ratio = encoder_force_ratio(baseline.gms, prepared)
-    info: dict[str, float] = {"encoder_noise_ratio": ratio}
+    info: dict[str, float] = {"encoder_noise_ratio": ratio, "fitted_every": prepared.fitted_every}
     as_motion: tuple[Prepared, Baseline] | None = None  # the reading not taken (yet)
     if ratio >= cfg.encoder_noise_ratio and prepared.encoder_step_m > 0.0:
         say("reading the encoder's counts as motion")

@@ -1,0 +1,77 @@
+"""A fast trace is fitted on every k-th sample, its kinematics from every sample."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+import pytest
+from indepgen import baseline, make_trace
+
+from gms_comp.app.commands.diagnose import _every
+from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.prepare import MAX_FITTED_EVERY, prepare
+from gms_comp.measured.traces import Trace
+
+SEED = 247  # the independent generator draws 4.1 kHz for it
+
+
+@functools.cache
+def _trace() -> tuple[Trace, float]:
+    gen = make_trace("none", SEED)  # 131 199 samples
+    return Trace("none-247", gen.time_s, gen.position_m, gen.force_N), gen.sample_rate_Hz
+
+
+def test_a_fast_trace_keeps_every_kth_sample_and_the_full_rate_acceleration() -> None:
+    trace, rate = _trace()
+    assert rate > 3000.0
+    every = int(rate // 600.0)
+    assert every > MAX_FITTED_EVERY  # 4.1 kHz: every 6th, but at most every 2nd
+    every = MAX_FITTED_EVERY
+    prepared = prepare(trace, "friction", None, DiagnosisConfig())
+    fitted = prepared.main
+    full = prepare(trace, "friction", None, DiagnosisConfig(fit_rate_Hz=0.0)).main
+    assert prepared.fitted_every == every
+    assert "1 in 2 fitted" in _every({"fitted_every": prepared.fitted_every})
+    assert len(full.kin) == len(trace)
+    assert len(fitted.kin) == len(range(0, len(trace), every))
+    assert np.array_equal(fitted.kin.time_s, trace.time_s[::every])
+    assert np.array_equal(fitted.force_N, trace.force_N[::every])
+    assert np.array_equal(fitted.path_position_m, trace.position_m[::every])
+    # the kinematics are the full rate's, picked: not differenced again at the lower rate
+    assert np.array_equal(fitted.kin.acceleration_m_s2, full.kin.acceleration_m_s2[::every])
+    assert np.array_equal(fitted.kin.velocity_m_s, full.kin.velocity_m_s[::every])
+    # and they follow the generator's own acceleration (an independent truth) in size
+    truth = baseline(SEED)[0].acceleration_m_s2[::every]
+    moving = np.abs(truth) > 0.1 * np.max(np.abs(truth))
+    ratio = np.sqrt(
+        np.mean(fitted.kin.acceleration_m_s2[moving] ** 2) / np.mean(truth[moving] ** 2)
+    )
+    assert ratio == pytest.approx(1.0, abs=0.05)
+    # a third of the blocks still held out
+    assert np.mean(fitted.held) == pytest.approx(np.mean(full.held), abs=0.02)
+
+
+def test_a_trace_below_twice_the_rate_keeps_every_sample() -> None:
+    trace, _ = _trace()
+    slow = dataclasses.replace(trace, time_s=trace.time_s[0] + np.arange(len(trace)) / 1190.0)
+    part = prepare(slow, "friction", None, DiagnosisConfig()).main
+    assert len(part.kin) == len(slow)
+
+
+def test_exactly_twice_the_rate_takes_every_other_sample() -> None:
+    trace, _ = _trace()
+    even = dataclasses.replace(trace, time_s=np.arange(len(trace)) / 1200.0)
+    part = prepare(even, "friction", None, DiagnosisConfig()).main
+    assert np.array_equal(part.kin.time_s, even.time_s[::2])
+
+
+def test_the_held_rows_of_another_reading_apply_to_the_fitted_rows() -> None:
+    # the encoder's counts read as motion are compared on the first reading's held rows
+    trace, _ = _trace()
+    cfg = DiagnosisConfig()
+    first = prepare(trace, "friction", None, cfg)
+    read = prepare(trace, "friction", None, cfg, dequantise=True, held=first.main.held)
+    assert np.array_equal(read.main.held, first.main.held)
+    assert np.array_equal(read.main.kin.time_s, first.main.kin.time_s)
