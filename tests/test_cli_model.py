@@ -297,3 +297,26 @@ def test_a_subcommand_loads_its_own_module_only() -> None:
     )
     for name in ("model", "config", "diagnose", "demo-trace", "simulate", "replay", "bench"):
         assert name in top.stdout
+
+
+def test_an_interrupt_wrapped_by_set_name_is_an_interrupt(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Python wraps an exception raised in __set_name__ (a dataclass created while a
+    # command's module is imported) in a RuntimeError: Ctrl-C there gave a traceback
+    def interrupted(_: object) -> None:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as err:
+            raise RuntimeError("Error calling __set_name__") from err
+
+    monkeypatch.setattr(cli, "build_parser", interrupted)
+    assert main(["model"]) == 130
+    assert capsys.readouterr().err.strip() == "gms-comp: interrupted"
+
+    def broken(_: object) -> None:
+        raise RuntimeError("not an interrupt")
+
+    monkeypatch.setattr(cli, "build_parser", broken)
+    with pytest.raises(RuntimeError, match="not an interrupt"):
+        main(["model"])

@@ -15,6 +15,7 @@ from gms_comp.measured.diagnosis.prepare import MAX_FITTED_EVERY, prepare
 from gms_comp.measured.traces import Trace
 
 SEED = 247  # the independent generator draws 4.1 kHz for it
+FAST = DiagnosisConfig(fit_rate_Hz=600.0)
 
 
 @functools.cache
@@ -29,7 +30,7 @@ def test_a_fast_trace_keeps_every_kth_sample_and_the_full_rate_acceleration() ->
     every = int(rate // 600.0)
     assert every > MAX_FITTED_EVERY  # 4.1 kHz: every 6th, but at most every 2nd
     every = MAX_FITTED_EVERY
-    prepared = prepare(trace, "friction", None, DiagnosisConfig())
+    prepared = prepare(trace, "friction", None, FAST)
     fitted = prepared.main
     full = prepare(trace, "friction", None, DiagnosisConfig(fit_rate_Hz=0.0)).main
     assert prepared.fitted_every == every
@@ -56,22 +57,27 @@ def test_a_fast_trace_keeps_every_kth_sample_and_the_full_rate_acceleration() ->
 def test_a_trace_below_twice_the_rate_keeps_every_sample() -> None:
     trace, _ = _trace()
     slow = dataclasses.replace(trace, time_s=trace.time_s[0] + np.arange(len(trace)) / 1190.0)
-    part = prepare(slow, "friction", None, DiagnosisConfig()).main
+    part = prepare(slow, "friction", None, FAST).main
     assert len(part.kin) == len(slow)
 
 
 def test_exactly_twice_the_rate_takes_every_other_sample() -> None:
     trace, _ = _trace()
     even = dataclasses.replace(trace, time_s=np.arange(len(trace)) / 1200.0)
-    part = prepare(even, "friction", None, DiagnosisConfig()).main
+    part = prepare(even, "friction", None, FAST).main
     assert np.array_equal(part.kin.time_s, even.time_s[::2])
 
 
 def test_the_held_rows_of_another_reading_apply_to_the_fitted_rows() -> None:
     # the encoder's counts read as motion are compared on the first reading's held rows
     trace, _ = _trace()
-    cfg = DiagnosisConfig()
+    cfg = FAST
     first = prepare(trace, "friction", None, cfg)
     read = prepare(trace, "friction", None, cfg, dequantise=True, held=first.main.held)
     assert np.array_equal(read.main.held, first.main.held)
     assert np.array_equal(read.main.kin.time_s, first.main.kin.time_s)
+
+
+def test_every_sample_is_fitted_by_default() -> None:
+    trace, _ = _trace()
+    assert len(prepare(trace, "friction", None, DiagnosisConfig()).main.kin) == len(trace)

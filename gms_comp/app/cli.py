@@ -93,7 +93,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except GmsCompError as err:
         print(f"{command}: error: {err}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, RuntimeError) as err:
+        # Python wraps an interrupt raised in a class's __set_name__ (a dataclass being
+        # created while a command's module is imported) in a RuntimeError
+        if isinstance(err, RuntimeError) and not isinstance(err.__cause__, KeyboardInterrupt):
+            raise
         _REDELIVERY["armed"] = False  # interrupted once is enough
         quiet_finalizers()
         print(f"{command}: interrupted", file=sys.stderr)
