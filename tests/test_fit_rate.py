@@ -1,4 +1,5 @@
-"""A fast trace is fitted on every k-th sample, its kinematics from every sample."""
+"""A fast trace is fitted on every k-th sample, its kinematics from every sample, and the
+model fitted is judged on every sample."""
 
 from __future__ import annotations
 
@@ -7,11 +8,12 @@ import functools
 
 import numpy as np
 import pytest
-from indepgen import baseline, make_trace
+from indepgen import Generated, baseline, make_trace
 
 from gms_comp.app.commands.diagnose import _every
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.prepare import MAX_FITTED_EVERY, prepare
+from gms_comp.measured.diagnosis.run import diagnose
 from gms_comp.measured.traces import Trace
 
 SEED = 247  # the independent generator draws 4.1 kHz for it
@@ -19,8 +21,13 @@ FAST = DiagnosisConfig(fit_rate_Hz=600.0)
 
 
 @functools.cache
+def _generated() -> Generated:
+    return make_trace("none", SEED)  # 131 199 samples
+
+
+@functools.cache
 def _trace() -> tuple[Trace, float]:
-    gen = make_trace("none", SEED)  # 131 199 samples
+    gen = _generated()
     return Trace("none-247", gen.time_s, gen.position_m, gen.force_N), gen.sample_rate_Hz
 
 
@@ -69,15 +76,41 @@ def test_exactly_twice_the_rate_takes_every_other_sample() -> None:
 
 
 def test_the_held_rows_of_another_reading_apply_to_the_fitted_rows() -> None:
-    # the encoder's counts read as motion are compared on the first reading's held rows
+    # the encoder's counts read as motion are compared on the first reading's held rows,
+    # given at every sample
     trace, _ = _trace()
     cfg = FAST
     first = prepare(trace, "friction", None, cfg)
-    read = prepare(trace, "friction", None, cfg, dequantise=True, held=first.main.held)
+    assert first.every_sample is not None
+    every = first.every_sample.main
+    assert len(every.kin) == len(trace) and every.kin is not first.main.kin
+    assert np.array_equal(every.held[::MAX_FITTED_EVERY], first.main.held)
+    read = prepare(trace, "friction", None, cfg, dequantise=True, held=every.held)
     assert np.array_equal(read.main.held, first.main.held)
     assert np.array_equal(read.main.kin.time_s, first.main.kin.time_s)
 
 
-def test_every_sample_is_fitted_by_default() -> None:
+def test_a_fast_trace_is_fitted_on_every_2nd_sample_by_default() -> None:
     trace, _ = _trace()
-    assert len(prepare(trace, "friction", None, DiagnosisConfig()).main.kin) == len(trace)
+    assert DiagnosisConfig().fit_rate_Hz > 0.0
+    prepared = prepare(trace, "friction", None, DiagnosisConfig())
+    assert prepared.fitted_every == MAX_FITTED_EVERY
+    assert prepare(trace, "friction", None, DiagnosisConfig(fit_rate_Hz=0.0)).every_sample is None
+
+
+def test_the_model_fitted_on_every_2nd_sample_is_judged_and_shown_on_every_sample() -> None:
+    trace, _ = _trace()
+    gen = _generated()
+    result = diagnose(trace, "friction", config=FAST)
+    assert result.baseline["fitted_every"] == MAX_FITTED_EVERY
+    series = result.series
+    assert np.array_equal(series["time_s"], trace.time_s)
+    assert np.array_equal(series["force_N"], trace.force_N)
+    # the models along every sample leave the generator's own noise, no more (a model
+    # placed wrong between the fitted samples would leave its misfit on the others)
+    for key in ("baseline_N", "extended_N"):
+        left = trace.force_N - series[key]
+        assert np.sqrt(np.mean(left[1::2] ** 2)) == pytest.approx(gen.noise_N, rel=0.1)
+        assert np.sqrt(np.mean(left[::2] ** 2)) == pytest.approx(gen.noise_N, rel=0.1)
+    assert result.structure.noise_rms_N == pytest.approx(gen.noise_N, rel=0.05)
+    assert result.extended_rms_N == pytest.approx(gen.noise_N, rel=0.1)

@@ -86,18 +86,17 @@ class Trace:
         """Mean sampling interval (time stamps may jitter by a few ns)."""
         return float((self.time_s[-1] - self.time_s[0]) / (len(self.time_s) - 1))
 
-    def slice(self, start: int, stop: int, step: int = 1) -> Trace:
-        """Every ``step``-th of the samples ``start:stop`` as a trace of their own."""
-        rows = slice(start, stop, step)
+    def slice(self, start: int, stop: int) -> Trace:
+        """The samples ``start:stop`` as a trace of their own."""
 
         def cut(a: np.ndarray | None) -> np.ndarray | None:
-            return None if a is None else a[rows]
+            return None if a is None else a[start:stop]
 
         return Trace(
-            source=f"{self.source}[{start}:{stop}{f':{step}' if step != 1 else ''}]",
-            time_s=self.time_s[rows],
-            position_m=self.position_m[rows],
-            force_N=self.force_N[rows],
+            source=f"{self.source}[{start}:{stop}]",
+            time_s=self.time_s[start:stop],
+            position_m=self.position_m[start:stop],
+            force_N=self.force_N[start:stop],
             velocity_m_s=cut(self.velocity_m_s),
             reference_position_m=cut(self.reference_position_m),
             current_A=cut(self.current_A),

@@ -16,13 +16,12 @@ class DiagnosisConfig:
     # reversal takes a few samples), the benchmark's 100 Hz for a drive force (it needs
     # an acceleration).
     filter_cutoff_Hz: float = field(default=0.0, metadata=in_range(0.0, 1e9))
-    # If set, a trace sampled at twice this or faster is fitted on every k-th sample,
-    # k = floor(rate / this) but at most 2 (prepare.MAX_FITTED_EVERY: a dwell gain lives in
-    # a break-away's few samples), its kinematics computed from every sample first. 600 Hz
-    # halved the time on the independent generator's 1.3-4.1 kHz traces with every effect
-    # named, but an uncatalogued bump crossed once (unknown_bumps-229, 4.6 kHz) then read
-    # `none`, so the default is 0: every sample.
-    fit_rate_Hz: float = field(default=0.0, metadata=in_range(0.0, 1e9))
+    # A trace sampled at twice this or faster is fitted on every k-th sample (0: every
+    # sample), k = floor(rate / this) but at most 2 (prepare.MAX_FITTED_EVERY: a dwell
+    # gain lives in a break-away's few samples), its kinematics computed from every sample
+    # first; what the fitted model leaves is judged on every sample. It halves the time of
+    # the independent generator's 1.3-4.1 kHz traces (1 kHz traces are not touched).
+    fit_rate_Hz: float = field(default=600.0, metadata=in_range(0.0, 1e9))
     # The kinematics come from the encoder's counts read as motion (a count passed
     # between crossings of its half, :func:`.motion.dequantised`) if the counts show in
     # the GMS driven by them (its stiffness over a count's error, K q / sqrt 12, is at

@@ -80,7 +80,10 @@ QUANTISED_SHARE = 0.9
 # shows in the few samples of a break-away, judged there by their RMS. On the independent
 # generator's dwell_time-118 (4.8 kHz, a gain of 0.09, peaks 3 x the noise) every 3rd
 # sample read `none`, every 2nd the gain (0.073); on dwell_time-248 (3.6 kHz) every 4th
-# or 6th read `none`; on dwell_time-247 every 5th or 6th ran gamma to its bound.
+# or 6th read `none`; on dwell_time-247 every 5th or 6th ran gamma to its bound. What
+# the fitted model leaves is judged on every sample (run.py): a bump crossed once
+# (unknown_bumps-229, 4.6 kHz) held 13-18 samples in each 0.125 mm bin, 6-9 on every 2nd
+# sample, fewer than structure.SPOT_ONE_WAY_SAMPLES, and read `none`.
 MAX_FITTED_EVERY = 2
 
 
@@ -100,6 +103,14 @@ class Part:
     # retreat was a reversal: the transient's 2.8 N flipped at the stop and again at the
     # start after it, which the truth does not have; the residual read as a tone).
     path_position_m: FloatArray
+
+    def picked(self, every: int) -> Part:
+        """Every ``every``-th row of this part, its kinematics the full rate's picked (not
+        differenced again at the lower rate: inertia-244 of the independent generator,
+        1.3 kHz, fitted on every 2nd sample, had its mass 13 % high; picked, 0.4 %)."""
+        rows = slice(None, None, every)
+        return Part(self.kin.slice(0, None, every), self.force_N[rows], self.train[rows],
+                    self.held[rows], self.path_position_m[rows])  # fmt: skip
 
     @functools.cached_property
     def motion_bases(self) -> dict[tuple[object, ...], FloatArray]:
@@ -124,6 +135,9 @@ class Prepared:
     encoder_step_m: float = 0.0  # 0: the position is not on an encoder's counts
     dequantised: bool = False  # the kinematics are from the counts read as motion
     fitted_every: int = 1  # the trace's samples fitted: every k-th (DiagnosisConfig.fit_rate_Hz)
+    # when fitted on every k-th sample: the same trace prepared at every sample, where the
+    # fitted model is judged (its residual's structure) and shown
+    every_sample: Prepared | None = None
 
     @property
     def main(self) -> Part:
@@ -220,8 +234,10 @@ def prepare(
     parts hold every kind of motion, :func:`held_third`) or of ``trace`` and
     ``validation`` (held out whole); with ``dequantise``, their kinematics from the
     encoder's counts read as motion (:func:`.motion.dequantised`); ``held``: the held-out
-    rows of ``trace`` as another reading chose them (the two readings are then compared
-    on the same rows).
+    rows of ``trace`` (every sample) as another reading chose them (the two readings are
+    then compared on the same rows). A trace sampled at twice ``cfg.fit_rate_Hz`` or
+    faster has its parts picked (:func:`fitted_every`, :meth:`Part.picked`), the parts
+    of every sample kept as :attr:`Prepared.every_sample`.
 
     Raises
     ------
@@ -238,7 +254,6 @@ def prepare(
         trace = _dequantised(trace, step)
         validation = None if validation is None else _dequantised(validation, step)
     kin = kinematics(trace, cutoff, accel_cutoff)
-    trace, kin, every = fitted_rows(trace, kin, cfg.fit_rate_Hz)
     deadband = cfg.reversal_deadband_steps * resolution
     still = cfg.standstill_speed_fraction * float(np.max(np.abs(kin.velocity_m_s)))
     check_usable(trace, kin, deadband, still)
@@ -247,9 +262,7 @@ def prepare(
         held = _held_rows(kin, still, deadband, cfg, resolution, trace) if held is None else held
         parts: tuple[Part, ...] = (Part(kin, trace.force_N, ~held, held, trace.position_m),)
     else:
-        validation, vkin, _ = fitted_rows(
-            validation, kinematics(validation, cutoff, accel_cutoff), cfg.fit_rate_Hz
-        )
+        vkin = kinematics(validation, cutoff, accel_cutoff)
         check_usable(validation, vkin, deadband, still)
         m = len(validation)
         parts = (
@@ -259,21 +272,20 @@ def prepare(
                  validation.position_m),
         )  # fmt: skip
     rest_band = cfg.rest_band_steps * resolution
-    return Prepared(
-        parts, drive, force_kind, still, deadband, resolution, rest_band, step, read, every
-    )  # fmt: skip
+    full = Prepared(parts, drive, force_kind, still, deadband, resolution, rest_band, step, read)
+    every = [fitted_every(t.sample_time_s, cfg.fit_rate_Hz) for t in (trace, validation) if t]
+    if max(every) == 1:
+        return full
+    picked = tuple(p.picked(k) for p, k in zip(parts, every, strict=True))
+    return dataclasses.replace(full, parts=picked, fitted_every=every[0], every_sample=full)
 
 
-def fitted_rows(trace: Trace, kin: Kinematics, rate_Hz: float) -> tuple[Trace, Kinematics, int]:
-    """Every k-th sample of ``trace`` (under its own name) and of its kinematics, and k:
-    floor(its sample rate / ``rate_Hz``), at most ``MAX_FITTED_EVERY``; 1 for ``rate_Hz``
-    0 or a slower trace."""
-    every = int(1.0 / (trace.sample_time_s * rate_Hz) + 1e-6) if rate_Hz > 0.0 else 1
-    every = min(every, MAX_FITTED_EVERY)
-    if every <= 1:
-        return trace, kin, 1
-    picked = dataclasses.replace(trace.slice(0, len(trace), every), source=trace.source)
-    return picked, kin.slice(0, None, every), every
+def fitted_every(sample_time_s: float, rate_Hz: float) -> int:
+    """Which samples of a trace sampled every ``sample_time_s`` are fitted: every k-th,
+    k = floor(its sample rate / ``rate_Hz``) but at most ``MAX_FITTED_EVERY``; 1 for
+    ``rate_Hz`` 0 or a slower trace."""
+    every = int(1.0 / (sample_time_s * rate_Hz) + 1e-6) if rate_Hz > 0.0 else 1
+    return max(1, min(every, MAX_FITTED_EVERY))
 
 
 def _held_rows(

@@ -197,7 +197,7 @@ def refit_kept(
     extensions = [r.effect for r in ranked]
     if baseline.prepared.drive:
         extensions.append(fx.Inertia(float(theta[n])))
-    predictions = tuple(_run(fp, gms, extensions) for fp in parts)
+    predictions = tuple(extended_force(fp, gms, extensions) for fp in parts)
     held = np.concatenate(
         [
             fp.part.force_N[fp.part.held] - y[fp.part.held]
@@ -437,6 +437,7 @@ def _refine_shape(
     return settled(best[0])[0]
 
 
-def _run(fp: FittedPart, gms: GmsParams, extensions: Sequence[fx.Effect]) -> FloatArray:
+def extended_force(fp: FittedPart, gms: GmsParams, extensions: Sequence[fx.Effect]) -> FloatArray:
+    """The extended model (``gms``, then ``extensions``) simulated along ``fp``."""
     force = simulate(gms, fp.part.kin.position_m, fp.part.kin.velocity_m_s)[0]
     return fx.apply_extensions(extensions, dataclasses.replace(fp.ctx, gms_force_N=force, gms=gms))

@@ -23,19 +23,22 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
+import numpy as np
 from threadpoolctl import threadpool_limits
 
+from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams
-from gms_comp.measured.diagnosis.baseline import Baseline, fit_baseline
+from gms_comp.measured.diagnosis.baseline import Baseline, FittedPart, fit_baseline, placed_on
 from gms_comp.measured.diagnosis.candidates import Scorer, describe_trials
 from gms_comp.measured.diagnosis.config import DiagnosisConfig, load_diagnosis_config
 from gms_comp.measured.diagnosis.coverage import caveats
+from gms_comp.measured.diagnosis.design import rms
 from gms_comp.measured.diagnosis.gain import lowers
 from gms_comp.measured.diagnosis.phases import phase_masks, residual_by_phase
 from gms_comp.measured.diagnosis.prepare import Prepared, encoder_force_ratio, prepare
-from gms_comp.measured.diagnosis.refit import refit
+from gms_comp.measured.diagnosis.refit import Extended, extended_force, refit
 from gms_comp.measured.diagnosis.result import Diagnosis, verdict
 from gms_comp.measured.diagnosis.selection import Selection, select
 from gms_comp.measured.diagnosis.structure import residual_structure
@@ -98,6 +101,28 @@ def _reads_better(
     )
 
 
+def _every_sample(
+    baseline: Baseline, extended: Extended
+) -> tuple[Baseline, tuple[FloatArray, ...]]:
+    """The baseline (its basis and coefficients) and the extended model along every
+    sample of the trace, when it was fitted on every k-th (``fit_rate_Hz``); else as
+    fitted. A feature crossed once holds few samples: picked, a bump's bins fell below
+    what the structure reads (``prepare.MAX_FITTED_EVERY``)."""
+    full = baseline.prepared.every_sample
+    if full is None:
+        return baseline, extended.predictions
+    along = placed_on(full, baseline)
+    return along, tuple(extended_force(fp, extended.gms, extended.extensions) for fp in along.parts)
+
+
+def _held_rms(parts: Sequence[FittedPart], predictions: Sequence[FloatArray]) -> float:
+    """The RMS of what ``predictions`` leave on the parts' held-out rows."""
+    return rms(np.concatenate([
+        fp.part.force_N[fp.part.held] - y[fp.part.held]
+        for fp, y in zip(parts, predictions, strict=True)
+    ]))  # fmt: skip
+
+
 def _diagnose(
     trace: Trace, force_kind: ForceKind, validation: Trace | None, cfg: DiagnosisConfig,
     table: GmsParams | None, progress: Progress | None,
@@ -115,7 +140,7 @@ def _diagnose(
     if ratio >= cfg.encoder_noise_ratio and prepared.encoder_step_m > 0.0:
         say("reading the encoder's counts as motion")
         # on the rows the counts hold out, so that the two readings compare like for like
-        same = None if validation is not None else prepared.parts[0].held
+        same = None if validation is not None else (prepared.every_sample or prepared).main.held
         read = prepare(trace, force_kind, validation, cfg, dequantise=True, held=same)
         again = fit_baseline(read, cfg, table)
         info["counts_heldout_rms_N"] = baseline.heldout_rms_N
@@ -136,25 +161,27 @@ def _diagnose(
     say("joint refit")
     extended = refit(selection, cfg)
     say("residual structure")
+    # judged (and shown) on every sample, when fitted on every k-th
+    judged, predictions = _every_sample(baseline, extended)
     structure = residual_structure(
-        baseline.parts, extended.predictions, baseline.presliding_m, baseline.sliding_force_N,
+        judged.parts, predictions, judged.presliding_m, judged.sliding_force_N,
         cfg.unknown_ratio, cfg.unknown_fraction,
     )  # fmt: skip
-    main = baseline.parts[0]
-    residual = main.part.force_N - baseline.predictions[0]
+    main = judged.parts[0]
+    residual = main.part.force_N - judged.predictions[0]
     series = {
         "time_s": main.part.kin.time_s,
         "position_m": main.part.kin.position_m,
         "velocity_m_s": main.part.kin.velocity_m_s,
         "force_N": main.part.force_N,
-        "baseline_N": baseline.predictions[0],
-        "extended_N": extended.predictions[0],
+        "baseline_N": judged.predictions[0],
+        "extended_N": predictions[0],
     }
-    if len(baseline.parts) > 1:
+    if len(judged.parts) > 1:
         series.update(
-            validation_force_N=baseline.parts[1].part.force_N,
-            validation_baseline_N=baseline.predictions[1],
-            validation_extended_N=extended.predictions[1],
+            validation_force_N=judged.parts[1].part.force_N,
+            validation_baseline_N=judged.predictions[1],
+            validation_extended_N=predictions[1],
         )
     named = [c.effect.name for c in extended.ranked]
     design_rms, first = selection.first_round
@@ -162,10 +189,10 @@ def _diagnose(
     return Diagnosis(
         effect=verdict(extended.ranked, structure),
         ranked=extended.ranked,
-        baseline_rms_N=baseline.heldout_rms_N,
-        extended_rms_N=extended.heldout_rms_N,
-        baseline=baseline.to_json(),
-        phases=residual_by_phase(residual, phase_masks(main.ctx, baseline.presliding_m)),
+        baseline_rms_N=judged.heldout_rms_N,
+        extended_rms_N=_held_rms(judged.parts, predictions),
+        baseline=judged.to_json(),
+        phases=residual_by_phase(residual, phase_masks(main.ctx, judged.presliding_m)),
         base_gms=baseline.gms,
         gms=extended.gms,
         extensions=extended.extensions,
