@@ -11,6 +11,8 @@ import pytest
 from indepgen import Generated, baseline, make_trace
 
 from gms_comp.app.commands.diagnose import _every
+from gms_comp.measured.diagnosis.baseline import fit_baseline, placed_on
+from gms_comp.measured.diagnosis.candidates import Scorer
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.prepare import MAX_FITTED_EVERY, prepare
 from gms_comp.measured.diagnosis.run import diagnose
@@ -114,3 +116,35 @@ def test_the_model_fitted_on_every_2nd_sample_is_judged_and_shown_on_every_sampl
         assert np.sqrt(np.mean(left[::2] ** 2)) == pytest.approx(gen.noise_N, rel=0.1)
     assert result.structure.noise_rms_N == pytest.approx(gen.noise_N, rel=0.05)
     assert result.extended_rms_N == pytest.approx(gen.noise_N, rel=0.1)
+
+
+def test_a_dwell_gain_at_few_starts_is_judged_on_every_sample() -> None:
+    # dwell_time-248 (3.6 kHz, a gain of 0.09 at 9 starts, noise 2.7 % of the level): on
+    # every 2nd sample its local test read z 2.1-3.0 (threshold 3) and `none`; on every
+    # sample z 5.7
+    gen = make_trace("dwell_time", 248)
+    trace = Trace("dwell_time-248", gen.time_s, gen.position_m, gen.force_N)
+    prepared = prepare(trace, "friction", None, DiagnosisConfig())
+    assert prepared.fitted_every == MAX_FITTED_EVERY and prepared.every_sample is not None
+    result = diagnose(trace, "friction")
+    assert result.effect == "dwell_time", result.ranked
+    assert len(result.series["time_s"]) == len(trace)
+
+
+def test_the_judge_of_a_picked_design_is_the_same_design_on_every_sample() -> None:
+    trace, _ = _trace()
+    prepared = prepare(trace, "friction", None, FAST)
+    fitted = fit_baseline(prepared, FAST, None)
+    every = prepared.every_sample
+    assert every is not None
+    scorer = Scorer(fitted.parts, [], lambda: placed_on(every, fitted).parts)
+    judge = scorer.judge
+    assert judge is not scorer
+    alone = Scorer(fitted.parts, [])  # no parts of every sample: judged where fitted
+    assert alone.judge is alone
+    assert len(judge.parts[0].part.force_N) == len(trace)
+    # the same coefficients fit both (a GMS is rate-independent; the held-out RMS the
+    # noise's on either)
+    assert judge.heldout_rms_N == pytest.approx(scorer.heldout_rms_N, rel=0.02)
+    gap = judge.model()[::MAX_FITTED_EVERY] - scorer.model()
+    assert np.sqrt(np.mean(gap**2)) < 0.2 * _generated().noise_N

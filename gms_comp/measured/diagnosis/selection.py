@@ -21,6 +21,7 @@ effect's shape bounds.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TypeVar
@@ -28,7 +29,7 @@ from typing import TypeVar
 import numpy as np
 
 from gms_comp.arrays import FloatArray
-from gms_comp.measured.diagnosis.baseline import Baseline
+from gms_comp.measured.diagnosis.baseline import Baseline, FittedPart, placed_on
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, Trial, options
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.gain import lowers, lowers_locally
@@ -133,8 +134,9 @@ def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: floa
     if not worth and local:
         # judged where it acts, at every event by a fit without it: an effect at a few
         # events may have none or one held out (and the held-out RMS not lowered)
-        local0, local1 = scorer.left_out(trial)
-        noise = force_noise(scorer.parts[0].part.force_N)
+        judge = scorer.judge  # on every sample
+        local0, local1 = judge.left_out(trial)
+        noise = force_noise(judge.parts[0].part.force_N)
         worth = lowers_locally(cfg, local0, local1, noise)
     apart = scorer.told_apart(trial.option)
     if worth and apart is not None:
@@ -166,10 +168,10 @@ def select(
     chosen, history, last = list(was.chosen), list(was.heldout_rms_N), list(was.last_round)
     pool = [e for e in pool if e not in {o.effect for o in chosen}]
     baseline, level_from, first, levels = was.baseline, was.level_from, was.first_round, was.levels
-    parts = baseline.parts
+    parts, every = baseline.parts, _every_sample(baseline)
     level = (level_from or baseline).sliding_force_N
     while pool and len(chosen) < cfg.max_effects:
-        scorer = Scorer(parts, chosen)
+        scorer = Scorer(parts, chosen, every)
         last = []
         for i, effect in enumerate(pool):
             if progress:
@@ -203,6 +205,7 @@ def select(
                 # Stribeck at another slip level: the selection goes on from that level
                 level_from = level_from or baseline
                 baseline, parts, take = free.baseline, free.baseline.parts, free.trial
+                every = _every_sample(baseline)
                 last = [take if t.option.effect is fx.Stribeck else t for t in last]
         if take is None:
             break
@@ -212,6 +215,13 @@ def select(
     return Selection(
         baseline, tuple(chosen), tuple(history), tuple(last), level_from, first, levels
     )
+
+
+def _every_sample(baseline: Baseline) -> Callable[[], tuple[FittedPart, ...]] | None:
+    """``baseline``'s parts along every sample (placed when first asked), if it is
+    fitted on every k-th sample; else None."""
+    full = baseline.prepared.every_sample
+    return None if full is None else functools.cache(lambda: placed_on(full, baseline).parts)
 
 
 def _free_level(
