@@ -135,8 +135,8 @@ class Prepared:
     encoder_step_m: float = 0.0  # 0: the position is not on an encoder's counts
     dequantised: bool = False  # the kinematics are from the counts read as motion
     fitted_every: int = 1  # the trace's samples fitted: every k-th (DiagnosisConfig.fit_rate_Hz)
-    # when fitted on every k-th sample: the same trace prepared at every sample, where the
-    # fitted model is judged (its residual's structure) and shown
+    # when fitted on every k-th sample: the same trace prepared at every sample, where an
+    # effect at few events and the fitted model's residual are judged, and the model shown
     every_sample: Prepared | None = None
 
     @property
@@ -273,7 +273,8 @@ def prepare(
         )  # fmt: skip
     rest_band = cfg.rest_band_steps * resolution
     full = Prepared(parts, drive, force_kind, still, deadband, resolution, rest_band, step, read)
-    every = [fitted_every(t.sample_time_s, cfg.fit_rate_Hz) for t in (trace, validation) if t]
+    rates = [t.sample_time_s for t in (trace, validation) if t is not None]
+    every = [fitted_every(dt, cfg.fit_rate_Hz) for dt in rates]
     if max(every) == 1:
         return full
     picked = tuple(p.picked(k) for p, k in zip(parts, every, strict=True))
