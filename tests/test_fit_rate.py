@@ -119,7 +119,7 @@ def test_the_model_fitted_on_every_2nd_sample_is_judged_and_shown_on_every_sampl
 
 
 def test_a_dwell_gain_at_few_starts_is_judged_on_every_sample() -> None:
-    # dwell_time-248 (3.6 kHz, a gain of 0.09 at 9 starts, noise 2.7 % of the level): on
+    # dwell_time-248 (3.6 kHz, a gain of 0.09 at 19 starts, noise 2.7 % of the level): on
     # every 2nd sample its local test read z 2.1-3.0 (threshold 3) and `none`; on every
     # sample z 5.7
     gen = make_trace("dwell_time", 248)

@@ -159,7 +159,7 @@ class Scorer:
         few events is judged by :meth:`left_out`; this one when the parts are every
         sample. Picked, a dwell gain at the starts of dwell_time-248 of the independent
         generator (3.6 kHz, 0.09 for a noise of 2.7 % of the level) dropped from z 5.7
-        to 2.1-3.0 on every 2nd sample (4.4-5.9 on the other half), and was not kept."""
+        to 2.1-3.0 on every 2nd sample (3.9-5.9 on the other half), and was not kept."""
         if self._every_sample is None:
             return self
         return Scorer(self._every_sample(), self.chosen)
