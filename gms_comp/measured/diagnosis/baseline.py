@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -233,11 +233,16 @@ def fit_free(
     return FreeBasis(breakaway_m, *best[1], sensed=sensed)
 
 
-def fit_baseline(prepared: Prepared, cfg: DiagnosisConfig, table: GmsParams | None) -> Baseline:
+def fit_baseline(
+    prepared: Prepared, cfg: DiagnosisConfig, table: GmsParams | None, near: Basis | None = None
+) -> Baseline:
     """The free GMS with its slip level, or the calibrated ``table`` if its held-out RMS
     is within ``cfg.table_margin`` (relative) of the free GMS's; ``info`` holds both RMS
-    values and the table's calibrated factors."""
-    free = _free_basis(prepared, cfg.n_elements)
+    values and the table's calibrated factors. ``near``: a free basis fitted on the same
+    motion (the counts read the other way, the force less an effect), whose slip level
+    the search steps from instead of laying out its grid (about 1 s a fit)."""
+    start = level_of(near) if isinstance(near, FreeBasis) else None
+    free = _free_basis(prepared, cfg.n_elements, start)
     designs, theta, _ = _fit(prepared, free, nuisance=True)
     free = refine_knots(prepared, free, theta)
     free = fit_free(prepared, free.breakaway_m, start=free)
@@ -262,12 +267,13 @@ def fit_baseline(prepared: Prepared, cfg: DiagnosisConfig, table: GmsParams | No
     return _baseline(prepared, basis, theta, info)
 
 
-def _free_basis(prepared: Prepared, n_elements: int) -> FreeBasis:
+def _free_basis(prepared: Prepared, n_elements: int, level: Level | None) -> FreeBasis:
     """The free basis in two passes (``COARSE_ELEMENTS``, then ``n_elements`` where the
-    coarse limits are; one pass if ``n_elements`` is not more than the coarse count)."""
+    coarse limits are; one pass if ``n_elements`` is not more than the coarse count), the
+    first from ``level`` if given."""
     kin, resolution = prepared.main.kin, prepared.position_resolution_m
     coarse = breakaway_grid(kin, min(n_elements, COARSE_ELEMENTS), resolution)
-    free = fit_free(prepared, coarse)
+    free = fit_free(prepared, coarse, None if level is None else FreeBasis(coarse, *level))
     if n_elements <= COARSE_ELEMENTS:
         return free
     # the coarse limits with the viscous term and the offset beside them (without, an
@@ -355,24 +361,17 @@ def _baseline(
         ctx = dataclasses.replace(prepared.context(p, phi @ theta[:n_gms]), gms=gms)
         parts.append(FittedPart(p, phi, cols, ctx))
     predictions = tuple(fp.base.values @ theta for fp in parts)
-    held = np.concatenate(
-        [
-            fp.part.force_N[fp.part.held] - y[fp.part.held]
-            for fp, y in zip(parts, predictions, strict=False)
-        ]
-    )
     return Baseline(
-        prepared=prepared,
-        basis=basis,
-        parts=tuple(parts),
-        theta=theta,
-        info=info,
-        gms=gms,
-        predictions=predictions,
-        heldout_rms_N=rms(held),
-        presliding_m=presliding_length(gms),
+        prepared, basis, tuple(parts), theta, info, gms, predictions,
+        heldout_rms_N=rms(held_residual(parts, predictions)), presliding_m=presliding_length(gms),
         sliding_force_N=float(np.sum(gms.limit_N)) * gms.slip_level,
-    )
+    )  # fmt: skip
+
+
+def held_residual(parts: Sequence[FittedPart], predictions: Sequence[FloatArray]) -> FloatArray:
+    """What ``predictions`` (one per part) leave on the parts' held-out rows, in order."""
+    pairs = zip(parts, predictions, strict=True)
+    return np.concatenate([fp.part.force_N[fp.part.held] - y[fp.part.held] for fp, y in pairs])
 
 
 def fitted_on(prepared: Prepared, basis: Basis, info: dict[str, Any]) -> Baseline:

@@ -27,6 +27,7 @@ from gms_comp.measured.diagnosis.baseline import (
     Basis,
     FittedPart,
     fit_baseline,
+    held_residual,
     placed_on,
     rebased,
     rebased_gram,
@@ -198,12 +199,7 @@ def refit_kept(
     if baseline.prepared.drive:
         extensions.append(fx.Inertia(float(theta[n])))
     predictions = tuple(extended_force(fp, gms, extensions) for fp in parts)
-    held = np.concatenate(
-        [
-            fp.part.force_N[fp.part.held] - y[fp.part.held]
-            for fp, y in zip(parts, predictions, strict=False)
-        ]
-    )
+    held = held_residual(parts, predictions)
     return Extended(baseline, ranked, gms, tuple(extensions), predictions, rms(held), held, placed)
 
 
@@ -307,7 +303,7 @@ def _placed_again(
             at += cols.shape[1]
         less.append(dataclasses.replace(fp.part, force_N=fp.part.force_N - force))
     prepared = dataclasses.replace(baseline.prepared, parts=tuple(less))
-    trial = placed_on(baseline.prepared, fit_baseline(prepared, cfg, None))
+    trial = placed_on(baseline.prepared, fit_baseline(prepared, cfg, None, near=baseline.basis))
     if Scorer(trial.parts, chosen).heldout_rms_N < before.heldout_rms_N:
         return trial, trial
     return baseline, trial

@@ -23,14 +23,13 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 
-import numpy as np
 from threadpoolctl import threadpool_limits
 
 from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams
-from gms_comp.measured.diagnosis.baseline import Baseline, FittedPart, fit_baseline, placed_on
+from gms_comp.measured.diagnosis.baseline import Baseline, fit_baseline, held_residual, placed_on
 from gms_comp.measured.diagnosis.candidates import Scorer, describe_trials
 from gms_comp.measured.diagnosis.config import DiagnosisConfig, load_diagnosis_config
 from gms_comp.measured.diagnosis.coverage import caveats
@@ -101,7 +100,7 @@ def _reads_better(
     )
 
 
-def _every_sample(
+def _along_every_sample(
     baseline: Baseline, extended: Extended
 ) -> tuple[Baseline, tuple[FloatArray, ...]]:
     """The baseline (its basis and coefficients) and the extended model along every
@@ -113,14 +112,6 @@ def _every_sample(
         return baseline, extended.predictions
     along = placed_on(full, baseline)
     return along, tuple(extended_force(fp, extended.gms, extended.extensions) for fp in along.parts)
-
-
-def _held_rms(parts: Sequence[FittedPart], predictions: Sequence[FloatArray]) -> float:
-    """The RMS of what ``predictions`` leave on the parts' held-out rows."""
-    return rms(np.concatenate([
-        fp.part.force_N[fp.part.held] - y[fp.part.held]
-        for fp, y in zip(parts, predictions, strict=True)
-    ]))  # fmt: skip
 
 
 def _diagnose(
@@ -142,7 +133,7 @@ def _diagnose(
         # on the rows the counts hold out, so that the two readings compare like for like
         same = None if validation is not None else (prepared.every_sample or prepared).main.held
         read = prepare(trace, force_kind, validation, cfg, dequantise=True, held=same)
-        again = fit_baseline(read, cfg, table)
+        again = fit_baseline(read, cfg, table, near=baseline.basis)
         info["counts_heldout_rms_N"] = baseline.heldout_rms_N
         if again.heldout_rms_N < (1.0 - cfg.margin) * baseline.heldout_rms_N:
             prepared, baseline = read, again
@@ -162,7 +153,7 @@ def _diagnose(
     extended = refit(selection, cfg)
     say("residual structure")
     # judged (and shown) on every sample, when fitted on every k-th
-    judged, predictions = _every_sample(baseline, extended)
+    judged, predictions = _along_every_sample(baseline, extended)
     structure = residual_structure(
         judged.parts, predictions, judged.presliding_m, judged.sliding_force_N,
         cfg.unknown_ratio, cfg.unknown_fraction,
@@ -190,7 +181,7 @@ def _diagnose(
         effect=verdict(extended.ranked, structure),
         ranked=extended.ranked,
         baseline_rms_N=judged.heldout_rms_N,
-        extended_rms_N=_held_rms(judged.parts, predictions),
+        extended_rms_N=rms(held_residual(judged.parts, predictions)),
         baseline=judged.to_json(),
         phases=residual_by_phase(residual, phase_masks(main.ctx, judged.presliding_m)),
         base_gms=baseline.gms,
