@@ -227,6 +227,17 @@ def test_a_ripple_the_elements_took_part_of_is_found_by_what_it_adds(trace_dir: 
     assert error is not None and error <= TOLERANCE["position_ripple"], _describe(gen, outcome)
 
 
+def test_a_stroke_profile_a_stribeck_fall_took_part_of_is_unknown(trace_dir: Path) -> None:
+    # unknown_stroke_profile-249 (limits 1 + 0.33 u^2 over the stroke, 4.8 kHz): a
+    # Stribeck fall with the slip level took part of it and left 3.9 x the noise, by
+    # position alone 2.3 x the noise but 2.7 % of the sliding force, under the 3 %
+    # threshold: `stribeck` until the residual as a whole was read (structure.py)
+    gen, outcome = diagnosed("unknown_stroke_profile", 249, trace_dir)
+    assert outcome.named == "unknown", _describe(gen, outcome)
+    where = outcome.result["structure"]["description"]
+    assert "x the noise" in where and "position" in where, where
+
+
 def test_a_transient_beside_a_drift_is_not_left_as_a_spot(trace_dir: Path) -> None:
     # pair_drift_reversal_transient-209 (kappa -0.30 over 16 s, a 1.28 N transient over
     # 0.12 mm): at 5da264b the transient came out 0 mm long and a spot it left (+0.58 N

@@ -124,3 +124,26 @@ def test_one_way_only_a_feature_wider_than_a_bin_at_a_steady_speed_is_a_spot() -
     back = np.abs(x - 7.3e-3) < 0.15e-3  # travelled both ways, one of them clean
     r[back & (d > 0)] += 0.8
     assert st._spot(r, x, d, NOISE, steady) is None
+
+
+def test_a_residual_far_above_the_noise_is_structure_though_no_one_quantity_holds_it() -> None:
+    # a level error that changes sign with the position and with the direction (its mean
+    # over either alone is zero), 4 x the noise: the bins of one quantity read nothing
+    rng = np.random.default_rng(4)
+    x, d = _stroke()
+    noise = rng.normal(0, NOISE, x.size)
+    joint = 0.4 * np.sign(x - 5e-3) * d
+    r = noise + joint
+    level = 5.0
+    found = st._unexplained(r, st._noise(r), 0.03 * level, level)
+    assert found is not None and found.by == "residual"
+    assert abs(found.rms_N - 0.4) < 0.02  # what stands above the noise
+    assert re.search(
+        r"stands 4(\.\d)? x the noise \(8(\.\d)? % of the sliding force\)", found.where
+    )
+    # white noise alone, and the same residual on a level it is under 3 % of, are not
+    assert st._unexplained(noise, st._noise(noise), 0.03 * level, level) is None
+    assert st._unexplained(r, st._noise(r), 0.03 * 20.0, 20.0) is None
+    # 2.5 x the noise is not far enough above it
+    mild = noise + 0.229 * np.sign(x - 5e-3) * d
+    assert st._unexplained(mild, st._noise(mild), 0.03, 1.0) is None
