@@ -79,7 +79,9 @@ class DiagnosisConfig:
     # unknown, the low-pass its partial candidate); uncatalogued effects left at least
     # 3.7 % (a level that follows the stroke, partly taken by a Stribeck fall and the
     # slip level: at 4 % it was named stribeck, a confident wrong answer), most of them
-    # over 3 x the noise and 9 % of the sliding force.
+    # over 3 x the noise and 9 % of the sliding force. The fraction also bounds what the
+    # residual as a whole holds above the noise where it stands 3 x the noise or more
+    # (structure.UNEXPLAINED_RATIO).
     unknown_ratio: float = field(default=1.5, metadata=positive())
     unknown_fraction: float = field(default=0.03, metadata=in_range(0.0, 1.0))
     standstill_speed_fraction: float = field(default=0.01, metadata=in_range(0.0, 1.0))
