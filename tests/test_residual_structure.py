@@ -147,3 +147,21 @@ def test_a_residual_far_above_the_noise_is_structure_though_no_one_quantity_hold
     # 2.5 x the noise is not far enough above it
     mild = noise + 0.229 * np.sign(x - 5e-3) * d
     assert st._unexplained(mild, st._noise(mild), 0.03, 1.0) is None
+
+
+def test_a_description_names_the_findings_that_are_structure_on_their_own() -> None:
+    # a spot far larger than the rest, then a tone and a position dependence that each
+    # pass the thresholds (floor 0.3 N), a drift that does too but comes fourth, a phase
+    # misfit that does not
+    found = [
+        st.Finding("spot", 2.0, "a spot"),
+        st.Finding("frequency", 0.5, "a tone"),
+        st.Finding("position", 0.4, "by position"),
+        st.Finding("time", 0.35, "over time"),
+        st.Finding("phase", 0.05, "by phase"),
+    ]
+    described = st.Structure(NOISE, tuple(found), True, 0.3).description()
+    assert described == "a spot; a tone; by position"
+    # without a floor, only what is half the largest's size
+    assert st.Structure(NOISE, tuple(found), True).description() == "a spot"
+    assert st.Structure(NOISE, tuple(found), False, 0.3).description() == ""

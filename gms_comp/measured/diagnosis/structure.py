@@ -79,6 +79,8 @@ SPOT_ONE_WAY_SAMPLES = 10
 # catalogue trace left at most 2.4 x the noise and 2.4 % (a reversal transient); the
 # measured EMPS trace 1.2 x.
 UNEXPLAINED_RATIO = 3.0
+# The most findings a description names.
+DESCRIBED = 3
 
 
 @dataclass(frozen=True)
@@ -97,13 +99,18 @@ class Structure:
     noise_rms_N: float
     findings: tuple[Finding, ...]  # largest first
     structured: bool
+    # what a finding holds to be structure on its own (the thresholds' larger)
+    floor_N: float = np.inf
 
     def description(self) -> str:
-        """The structured findings in words (empty when the residual is noise-like)."""
+        """The structured findings in words (empty when the residual is noise-like): the
+        largest, then at most ``DESCRIBED - 1`` more that are half its size or structure
+        on their own (a spot on a time modulation, and its tone and position)."""
         if not self.structured:
             return ""
-        big = [f for f in self.findings if f.rms_N >= 0.5 * self.findings[0].rms_N]
-        return "; ".join(f.where for f in big)
+        first, *rest = self.findings
+        big = [f for f in rest if f.rms_N >= min(0.5 * first.rms_N, self.floor_N)]
+        return "; ".join(f.where for f in [first, *big][:DESCRIBED])
 
     def to_json(self) -> dict[str, Any]:
         """The findings for the diagnosis JSON."""
@@ -216,7 +223,7 @@ def residual_structure(
     if spot is not None and spot.rms_N >= max(SPOT_RATIO * noise, SPOT_FRACTION * level_N):
         findings.insert(0, spot)
         structured = True
-    return Structure(noise, tuple(findings), structured)
+    return Structure(noise, tuple(findings), structured, max(ratio * noise, fraction * level_N))
 
 
 def _unexplained(
