@@ -240,7 +240,7 @@ def fit_baseline(
     is within ``cfg.table_margin`` (relative) of the free GMS's; ``info`` holds both RMS
     values and the table's calibrated factors. ``near``: a free basis fitted on the same
     motion (the counts read the other way, the force less an effect), whose slip level
-    the search steps from instead of laying out its grid (about 1 s a fit)."""
+    the search steps from instead of laying out its grid again (81 fits)."""
     start = level_of(near) if isinstance(near, FreeBasis) else None
     free = _free_basis(prepared, cfg.n_elements, start)
     designs, theta, _ = _fit(prepared, free, nuisance=True)

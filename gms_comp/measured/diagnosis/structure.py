@@ -74,8 +74,8 @@ SPOT_ONE_WAY_SAMPLES = 10
 # the trajectory reaches at each place (unknown_stroke_profile-249 of the independent
 # generator: 3.9 x the noise left, 4.6 % of the sliding force above it, by position
 # alone 2.3 x and 2.7 %; named stribeck). Where the residual's RMS is UNEXPLAINED_RATIO x
-# the noise or more, and what stands above the noise is the ``fraction`` of the level,
-# it is structure too. On the 270 traces of seeds 244-253 every effect-free and
+# the noise or more, and what stands above the noise at least the ``fraction`` of the
+# level, it is structure too. On the 270 traces of seeds 244-258 every effect-free and
 # catalogue trace left at most 2.4 x the noise and 2.4 % (a reversal transient); the
 # measured EMPS trace 1.2 x.
 UNEXPLAINED_RATIO = 3.0
