@@ -303,7 +303,7 @@ def _placed_again(
             at += cols.shape[1]
         less.append(dataclasses.replace(fp.part, force_N=fp.part.force_N - force))
     prepared = dataclasses.replace(baseline.prepared, parts=tuple(less))
-    trial = placed_on(baseline.prepared, fit_baseline(prepared, cfg, None, near=baseline.basis))
+    trial = placed_on(baseline.prepared, fit_baseline(prepared, cfg, None))
     if Scorer(trial.parts, chosen).heldout_rms_N < before.heldout_rms_N:
         return trial, trial
     return baseline, trial

@@ -133,7 +133,7 @@ def _diagnose(
         # on the rows the counts hold out, so that the two readings compare like for like
         same = None if validation is not None else (prepared.every_sample or prepared).main.held
         read = prepare(trace, force_kind, validation, cfg, dequantise=True, held=same)
-        again = fit_baseline(read, cfg, table, near=baseline.basis)
+        again = fit_baseline(read, cfg, table)
         info["counts_heldout_rms_N"] = baseline.heldout_rms_N
         if again.heldout_rms_N < (1.0 - cfg.margin) * baseline.heldout_rms_N:
             prepared, baseline = read, again
