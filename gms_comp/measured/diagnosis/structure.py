@@ -213,8 +213,8 @@ def residual_structure(
     tone, freq = _tone(res[-1][first : first + run.stop - run.start], main.ctx.sample_time_s)
     findings.append(Finding("frequency", tone, f"a tone at {freq:.4g} Hz"))
     findings.sort(key=lambda f: f.rms_N, reverse=True)
-    top_rms = findings[0].rms_N
-    structured = bool(top_rms >= ratio * noise and top_rms >= fraction * level_N)
+    floor = max(ratio * noise, fraction * level_N)
+    structured = bool(findings[0].rms_N >= floor)
     unexplained = None if structured else _unexplained(r, noise, fraction * level_N, level_N)
     if unexplained is not None:
         findings.insert(0, unexplained)
@@ -223,7 +223,7 @@ def residual_structure(
     if spot is not None and spot.rms_N >= max(SPOT_RATIO * noise, SPOT_FRACTION * level_N):
         findings.insert(0, spot)
         structured = True
-    return Structure(noise, tuple(findings), structured, max(ratio * noise, fraction * level_N))
+    return Structure(noise, tuple(findings), structured, floor)
 
 
 def _unexplained(
