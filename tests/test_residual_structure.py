@@ -7,8 +7,10 @@ import re
 from types import SimpleNamespace
 
 import numpy as np
+from scipy import signal
 
 from gms_comp.measured.diagnosis import structure as st
+from gms_comp.runtime import effects as fx
 
 NOISE = 0.1
 
@@ -165,3 +167,45 @@ def test_a_description_names_the_findings_that_are_structure_on_their_own() -> N
     # without a floor, only what is half the largest's size
     assert st.Structure(NOISE, tuple(found), True).description() == "a spot"
     assert st.Structure(NOISE, tuple(found), False, 0.3).description() == ""
+
+
+def _step_and_stop(fs: float = 2000.0) -> SimpleNamespace:
+    """Moves of 5 mm at 10 mm/s, back and forth, each followed by a 0.4 s standstill (the
+    fields of a fitted part the standstill reading takes: path and measured position)."""
+    move, rest = np.full(int(0.5 * fs), 10e-3), np.zeros(int(0.4 * fs))
+    v = np.concatenate([np.concatenate([s * move, rest]) for s in (1.0, -1.0) * 10])
+    t = np.arange(v.size) / fs
+    x = np.cumsum(v) / fs
+    a = np.gradient(v, t)
+    ctx = fx.Context.along(t, x, v, a, np.zeros(v.size))
+    return SimpleNamespace(ctx=ctx, part=SimpleNamespace(path_position_m=x))
+
+
+def test_coloured_noise_read_at_standstill_is_noise_not_an_unexplained_residual() -> None:
+    # a sensor's noise low-passed far below the sampling rate: its sample-to-sample
+    # differences see a fraction of it, so the residual stands many times "the noise";
+    # at rest, where the model's force is constant, all of it shows
+    part = _step_and_stop()
+    n = part.ctx.time_s.size
+    rng = np.random.default_rng(5)
+    sos = signal.butter(2, 60.0, fs=2000.0, output="sos")
+    coloured = signal.sosfiltfilt(sos, rng.normal(size=n))
+    coloured *= 0.4 / np.std(coloured)
+    level = 10.0  # the noise is 4 % of it
+    diff_noise = st._noise(coloured)
+    assert diff_noise < 0.2 * 0.4
+    assert st._unexplained(coloured, diff_noise, 0.03 * level, level) is not None
+    still = st._still_noise([part], [coloured], 1e-5)  # type: ignore[list-item]
+    assert abs(still - 0.4) < 0.06
+    assert st._unexplained(coloured, max(diff_noise, still), 0.03 * level, level) is None
+    # white noise: at rest and from the differences alike; a misfit in motion only (a
+    # level 0.5 N off, of opposite sign each way) leaves the standstills' reading as it was
+    white = rng.normal(0, NOISE, n)
+    misfit = white + 0.5 * np.sign(part.ctx.velocity_m_s)
+    still_white = st._still_noise([part], [misfit], 1e-5)  # type: ignore[list-item]
+    assert abs(still_white / st._noise(white) - 1.0) < 0.05
+    assert st._unexplained(misfit, max(st._noise(misfit), still_white), 0.3, level) is not None
+    # too little standstill to read: 0, the differences decide
+    short = _step_and_stop(fs=100.0)
+    r = rng.normal(0, NOISE, short.ctx.time_s.size)
+    assert st._still_noise([short], [r], 1e-5) == 0.0  # type: ignore[list-item]

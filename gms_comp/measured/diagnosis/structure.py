@@ -79,6 +79,18 @@ SPOT_ONE_WAY_SAMPLES = 10
 # catalogue trace left at most 2.4 x the noise and 2.4 % (a reversal transient); the
 # measured EMPS trace 1.2 x.
 UNEXPLAINED_RATIO = 3.0
+# ... the noise there read at standstill as well: the sample-to-sample differences see
+# white noise only, and a sensor's noise low-passed (a 2nd-order 65 Hz Butterworth at
+# 1.3 kHz, 3 % of the level) read 7.2 x smaller: its effect-free trace left 7.1 x "the
+# noise" and dwell_time and sensor_lowpass traces of that seed were `unknown`. At rest
+# (the counts unchanged) the model's force is constant, so what the residual holds there,
+# less each standstill's straight line (a held level's misfit, a slow settling), is the
+# noise, coloured or not: 0.38 N for that trace's 0.40 N. Slower than the standstill
+# speed is not at rest: read so, unknown_stroke_profile-249's slow moves read 1.9 x its
+# white noise and it was named stribeck again. Read on standstills of STILL_RUN_SAMPLES
+# or more, from STILL_SAMPLES in all (else the differences alone).
+STILL_RUN_SAMPLES = 50
+STILL_SAMPLES = 1000
 # The most findings a description names.
 DESCRIBED = 3
 
@@ -215,7 +227,11 @@ def residual_structure(
     findings.sort(key=lambda f: f.rms_N, reverse=True)
     floor = max(ratio * noise, fraction * level_N)
     structured = bool(findings[0].rms_N >= floor)
-    unexplained = None if structured else _unexplained(r, noise, fraction * level_N, level_N)
+    if structured:
+        unexplained = None
+    else:
+        still = _still_noise(parts, residuals, presliding_m)
+        unexplained = _unexplained(r, max(noise, still), fraction * level_N, level_N)
     if unexplained is not None:
         findings.insert(0, unexplained)
         structured = True
@@ -239,6 +255,29 @@ def _unexplained(
         f"what the model leaves stands {left / noise:.2g} x the noise ({100 * above / level_N:.2g} "
         f"% of the sliding force), more than any one quantity holds"
     ))  # fmt: skip
+
+
+def _still_noise(
+    parts: Sequence[FittedPart], residuals: Sequence[FloatArray], presliding_m: float
+) -> float:
+    """The residual's RMS at rest, each standstill of ``STILL_RUN_SAMPLES`` or more less
+    its straight line; 0 with fewer than ``STILL_SAMPLES`` such samples."""
+    left: list[FloatArray] = []
+    for fp, residual in zip(parts, residuals, strict=True):
+        x = fp.part.path_position_m  # measured: its counts do not change at rest
+        still = phase_masks(fp.ctx, presliding_m)["standstill"]
+        still[1:] &= x[1:] == x[:-1]
+        still[0] = False
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(np.int8), [0]])))
+        for start, stop in zip(edges[::2], edges[1::2], strict=True):
+            if stop - start >= STILL_RUN_SAMPLES:
+                k = np.arange(stop - start, dtype=np.float64)
+                segment = residual[start:stop]
+                left.append(segment - np.polyval(np.polyfit(k, segment, 1), k))
+    n = sum(a.size for a in left)
+    if n < STILL_SAMPLES:
+        return 0.0
+    return float(np.sqrt(sum(float(np.sum(a**2)) for a in left) / (n - 2 * len(left))))
 
 
 def _noise(residual: FloatArray) -> float:
