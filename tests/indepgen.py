@@ -13,9 +13,10 @@ the stick level to C_v (1.0-1.3) times it, smoothly, over a transition velocity 
 slip level above stick and belongs to the baseline (a trace with only it is ``none``).
 Friction is positive when the carriage moves in +x (the force needed to push it).
 
-Measurement: white force noise of 0.5-3 % of the sliding level, sample rate 1-5 kHz,
-position quantised to 1-50 nm. Effects (the catalogue's forms and parameter names) are drawn
-at sizes that matter for compensation (about 10-30 % of the sliding force or the equivalent).
+Measurement: white force noise (low-passed on request) of 0.5-3 % of the sliding level,
+sample rate 1-5 kHz, position quantised to 1-50 nm. Effects (the catalogue's forms and
+parameter names) are drawn at sizes that matter for compensation (about 10-30 % of the
+sliding force or the equivalent).
 
 Uncatalogued effects (the diagnosis must answer ``unknown``); each one is odd in the
 direction of motion (it acts on the friction level), so neither ``offset`` nor
@@ -47,6 +48,7 @@ from pathlib import Path
 import numpy as np
 from indepfriction import Effect, Truth, friction, play_operator, velocity_level
 from indepmotion import trajectory
+from scipy import signal
 
 __all__ = [
     "CASES",
@@ -298,7 +300,9 @@ def baseline(seed: int, samples: int | None = None) -> tuple[Truth, float, float
     return truth, noise, quantisation, rng.normal(0.0, noise, length)
 
 
-def make_trace(case: str, seed: int, samples: int | None = None) -> Generated:
+def make_trace(
+    case: str, seed: int, samples: int | None = None, noise_cutoff_Hz: float | None = None
+) -> Generated:
     """Generate one measured-like trace with hidden ``case`` effects.
 
     Parameters
@@ -309,6 +313,9 @@ def make_trace(case: str, seed: int, samples: int | None = None) -> Generated:
         Seed of every random draw (trace, nominal, effect sizes): same seed, same trace.
     samples : int, optional
         Trace length; by default 100 000-200 000 samples drawn from the seed.
+    noise_cutoff_Hz : float, optional
+        The force noise low-passed at this cutoff (a sensor's or a drive's filter: 2nd-order
+        Butterworth, zero phase), at the same standard deviation; white by default.
 
     Returns
     -------
@@ -318,6 +325,10 @@ def make_trace(case: str, seed: int, samples: int | None = None) -> Generated:
     if case not in CASES:
         raise ValueError(f"unknown case {case!r}; choose from {', '.join(CASES)}")
     truth, noise, quantisation, noise_N = baseline(seed, samples)
+    if noise_cutoff_Hz is not None:
+        sos = signal.butter(2, noise_cutoff_Hz, fs=truth.sample_rate_Hz, output="sos")
+        noise_N = signal.sosfiltfilt(sos, noise_N)
+        noise_N *= noise / np.std(noise_N)
     effects, expected = _effects_for(case, truth, np.random.default_rng([seed, CASES.index(case)]))
     force = friction(truth, effects) + noise_N
     return Generated(

@@ -238,6 +238,19 @@ def test_a_stroke_profile_a_stribeck_fall_took_part_of_is_unknown(trace_dir: Pat
     assert "x the noise" in where and "position" in where, where
 
 
+@pytest.mark.parametrize("case", ["none", "dwell_time", "sensor_lowpass"])
+def test_a_sensor_s_low_passed_noise_is_noise_not_an_unexplained_residual(
+    case: str, trace_dir: Path
+) -> None:
+    # seed 242 (1.3 kHz, noise 3.0 % of the level) with its noise low-passed at 65 Hz:
+    # read from the sample-to-sample differences it was 7.2 x smaller, the residual stood
+    # 7.9 x "the noise", and dwell_time and sensor_lowpass were `unknown` (structure.py
+    # reads the noise at rest as well)
+    gen = make_trace(case, 242, noise_cutoff_Hz=65.0)
+    outcome = timed_diagnose(write_csv(gen, trace_dir / f"{case}_242_coloured.csv"), TIMEOUT_S)
+    assert outcome.named == gen.expected, _describe(gen, outcome)
+
+
 def test_a_transient_beside_a_drift_is_not_left_as_a_spot(trace_dir: Path) -> None:
     # pair_drift_reversal_transient-209 (kappa -0.30 over 16 s, a 1.28 N transient over
     # 0.12 mm): at 5da264b the transient came out 0 mm long and a spot it left (+0.58 N

@@ -300,3 +300,14 @@ def test_a_dwell_gain_is_judged_at_the_median_standstill() -> None:
     assert abs(same["gamma"] / p["gamma"] - 1.0) > 0.5  # gamma alone: far off
     more = {"gamma": 1.1 * p["gamma"], "tau_s": p["tau_s"]}
     assert parameter_error("dwell_time", p, more) == pytest.approx(0.1)
+
+
+def test_low_passed_noise_keeps_its_standard_deviation_and_loses_its_high_frequencies() -> None:
+    white = make_trace("none", FORM_SEED, SHORT)
+    coloured = make_trace("none", FORM_SEED, SHORT, noise_cutoff_Hz=75.0)  # 1.5 kHz / 20
+    # the same truth: the two differ by the noise only (white out, low-passed in)
+    truth = white.force_N - baseline(FORM_SEED, SHORT)[3]
+    low = coloured.force_N - truth
+    assert np.std(low) == pytest.approx(white.noise_N, rel=1e-6)
+    # a 2nd-order 75 Hz filter at 1.5 kHz: its sample-to-sample differences a small share
+    assert np.std(np.diff(low)) < 0.3 * np.std(np.diff(white.force_N - truth))
