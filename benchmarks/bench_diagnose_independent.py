@@ -10,6 +10,9 @@ per-trace rows as JSON;
 saved rows without running anything (their main parameters judged again, by today's rule).
 
     python benchmarks/bench_diagnose_independent.py --seeds 1 --jobs 2 -o indep.json
+
+``--noise-cutoff 0.05`` low-passes the force noise at 5 % of each trace's sample rate (a
+sensor's or a drive's filter), at the same standard deviation.
 """
 
 from __future__ import annotations
@@ -52,6 +55,13 @@ def _jobs(value: str) -> int:
     return jobs
 
 
+def _fraction(value: str) -> float:
+    fraction = float(value)
+    if not 0.0 < fraction < 0.5:
+        raise argparse.ArgumentTypeError("a fraction of the sample rate below the Nyquist 0.5")
+    return fraction
+
+
 def _cases(value: str) -> list[str]:
     chosen = [c.strip() for c in value.split(",") if c.strip()]
     wrong = [c for c in chosen if c not in CASES]
@@ -61,10 +71,15 @@ def _cases(value: str) -> list[str]:
 
 
 def run_one(
-    case: str, seed: int, samples: int | None, timeout_s: float, folder: Path
-) -> dict[str, Any]:
-    """Generate, diagnose and judge one trace; one row of the benchmark."""
+    case: str, seed: int, samples: int | None, timeout_s: float, folder: Path,
+    noise_cutoff: float | None = None,
+) -> dict[str, Any]:  # fmt: skip
+    """Generate, diagnose and judge one trace; one row of the benchmark (``noise_cutoff``:
+    the force noise low-passed at this fraction of the trace's sample rate)."""
     gen = make_trace(case, seed, samples)
+    cutoff_Hz = None if noise_cutoff is None else noise_cutoff * gen.sample_rate_Hz
+    if cutoff_Hz is not None:
+        gen = make_trace(case, seed, samples, noise_cutoff_Hz=cutoff_Hz)
     path = write_csv(gen, folder / f"{case}_{seed}.csv")
     row: dict[str, Any] = {
         "case": case,
@@ -78,6 +93,7 @@ def run_one(
         "noise_N": gen.noise_N,
         "sample_rate_Hz": gen.sample_rate_Hz,
         "quantisation_m": gen.quantisation_m,
+        "noise_cutoff_Hz": cutoff_Hz,
     }
     try:
         outcome = timed_diagnose(path, timeout_s)
@@ -265,6 +281,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--jobs", type=_jobs, default=1, help="diagnoses at once, 1 or 2")
     parser.add_argument(
+        "--noise-cutoff", type=_fraction, default=None, metavar="FRACTION",
+        help="low-pass the force noise at this fraction of the sample rate (default: white)",
+    )  # fmt: skip
+    parser.add_argument(
         "--timeout", type=float, default=900.0, help="seconds per diagnosis (default 900)"
     )
     parser.add_argument(
@@ -283,7 +303,8 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as folder, ThreadPoolExecutor(args.jobs) as pool:
         futures = [
-            pool.submit(run_one, c, s, args.samples, args.timeout, Path(folder)) for c, s in work
+            pool.submit(run_one, c, s, args.samples, args.timeout, Path(folder), args.noise_cutoff)
+            for c, s in work
         ]
         for future in futures:
             row = future.result()
