@@ -10,8 +10,9 @@ import pytest
 from indepgen import baseline, make_trace
 
 from gms_comp.app.commands.diagnose import summary
+from gms_comp.measured.diagnosis.encoder import encoder_step, position_resolution
 from gms_comp.measured.diagnosis.motion import dequantised
-from gms_comp.measured.diagnosis.prepare import encoder_step, force_noise, position_resolution
+from gms_comp.measured.diagnosis.prepare import force_noise
 from gms_comp.measured.diagnosis.run import diagnose
 from gms_comp.measured.traces import Trace
 
@@ -27,6 +28,24 @@ def test_a_quantised_fast_trace_gives_the_encoder_step() -> None:
     assert np.percentile(steps[steps > 0], 5) > 10 * q  # what the percentile alone reads
     assert abs(position_resolution(x) - q) < 1e-15
     assert encoder_step(x) == position_resolution(x)
+
+
+def test_an_encoder_step_seen_once_in_ten_thousand_steps_is_found_through_a_csv() -> None:
+    # a fast trace on a 2.05 nm encoder: steps up to ~6000 counts, 1-5 counts in ~4
+    # of 10 000 steps (the independent generator's seed 261: 0.014 % single counts),
+    # positions within 50 mm written with a CSV's 12 significant digits
+    rng = np.random.default_rng(6)
+    q = 2.0512839e-9
+    slow = rng.random(100_000) < 4e-4
+    speed = np.where(slow, 6e-9, 8e-6) * rng.uniform(0.5, 1.5, slow.size)  # m per sample
+    truth = np.cumsum(speed * np.where(np.arange(slow.size) % 12_000 < 6000, 1.0, -1.0))
+    x = np.array([float(f"{v:.12g}") for v in np.round(truth / q) * q])
+    steps = np.abs(np.diff(x))
+    ones = np.count_nonzero(np.abs(steps - q) < 0.05 * q)
+    assert 0 < ones < 1e-3 * np.count_nonzero(steps)  # rarer than was required
+    assert np.max(np.abs(x)) < 0.05
+    assert abs(encoder_step(x) / q - 1.0) < 1e-6
+    assert position_resolution(x) == encoder_step(x)
 
 
 def test_an_unquantised_position_falls_back_to_the_percentile() -> None:

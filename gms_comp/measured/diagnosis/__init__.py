@@ -6,8 +6,9 @@ A pipeline of stages, each a module taking one record and returning the next
 table), :mod:`.candidates` and :mod:`.selection` (-> Selection), :mod:`.refit`
 (-> Extended), :mod:`.structure` (-> Structure: ``unknown`` or noise), :mod:`.result`
 (-> Diagnosis and its JSON). Helpers: :mod:`.design` (bounded least squares, Gram
-scoring), :mod:`.motion` (kinematics), :mod:`.phases` (residual by motion phase),
-:mod:`.emps` (the EMPS benchmark's reference), :mod:`.report` (plots and index.html),
-:mod:`.config` (the ``[diagnosis]`` section). The effects themselves are the catalogue
+scoring), :mod:`.motion` (kinematics), :mod:`.encoder` (the position sensor's step),
+:mod:`.phases` (residual by motion phase), :mod:`.emps` (the EMPS benchmark's
+reference), :mod:`.report` (plots and index.html), :mod:`.config` (the ``[diagnosis]``
+section). The effects themselves are the catalogue
 in :mod:`gms_comp.runtime.effects`.
 """

@@ -18,6 +18,7 @@ from scipy import stats
 from gms_comp.arrays import BoolArray, FloatArray, IntArray
 from gms_comp.gms import GmsParams
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.encoder import step_and_resolution
 from gms_comp.measured.diagnosis.motion import Kinematics, dequantised, kinematics
 from gms_comp.measured.traces import ForceKind, Trace
 from gms_comp.runtime import effects as fx
@@ -70,11 +71,6 @@ TRAIN_TOP_SHARE = 0.8
 # z 2.7, and `none`.
 HELD_TOP_SHARE = 0.2
 
-# An encoder's step: seen in at least STEP_SHARE of the nonzero steps, and at least
-# QUANTISED_SHARE of them whole multiples of it within STEP_TOLERANCE (of one step).
-STEP_SHARE = 1e-3
-STEP_TOLERANCE = 0.05
-QUANTISED_SHARE = 0.9
 
 # At most every this many samples are fitted (DiagnosisConfig.fit_rate_Hz): a dwell gain
 # shows in the few samples of a break-away, judged there by their RMS. On the independent
@@ -167,41 +163,6 @@ class Prepared:
             )
             for p in self.parts
         ]
-
-
-def position_resolution(position_m: FloatArray) -> float:
-    """The smallest position step the sensor reports: the encoder's step
-    (:func:`encoder_step`), else the 5th percentile of the nonzero steps.
-
-    The percentile alone read a 39 nm encoder as 0.43 um on an independent trace whose
-    motion is mostly fast (11 x; 4-38 x on six of ten such traces), which put the free
-    GMS's smallest break-away above the true ones and the reversal deadband at 0.26 um."""
-    return step_and_resolution(position_m)[1]
-
-
-def encoder_step(position_m: FloatArray) -> float:
-    """The encoder's step when the position's steps are whole multiples of one (the
-    smallest step seen at least ``STEP_SHARE`` of the time, within ``STEP_TOLERANCE``,
-    among the smallest 5 %); 0 when they are not."""
-    return step_and_resolution(position_m)[0]
-
-
-def step_and_resolution(position_m: FloatArray) -> tuple[float, float]:
-    """:func:`encoder_step` and :func:`position_resolution` from one pass over the
-    position's steps."""
-    steps = np.abs(np.diff(position_m))
-    steps = steps[steps > 0]
-    if steps.size == 0:
-        return 0.0, 0.0
-    percentile = float(np.percentile(steps, 5))
-    for step in np.unique(steps[steps <= percentile]):
-        if np.count_nonzero(steps <= step * (1 + STEP_TOLERANCE)) < STEP_SHARE * steps.size:
-            continue
-        counts = steps / step
-        if np.mean(np.abs(counts - np.round(counts)) <= STEP_TOLERANCE) >= QUANTISED_SHARE:
-            return float(step), float(step)
-        break
-    return 0.0, percentile
 
 
 def force_noise(force_N: FloatArray) -> float:
