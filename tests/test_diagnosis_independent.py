@@ -251,6 +251,17 @@ def test_a_sensor_s_low_passed_noise_is_noise_not_an_unexplained_residual(
     assert outcome.named == gen.expected, _describe(gen, outcome)
 
 
+def test_a_fast_trace_s_rare_single_counts_still_read_as_its_encoder(trace_dir: Path) -> None:
+    # seed 261: a 2.05 nm encoder, single counts 0.014 % of the steps. Read as unquantised
+    # (its resolution 0.55 um), the free GMS's smallest break-away was 1.09 um for the
+    # truth's 0.27 um stiff element, and a reversal transient (2.7 N over 1.2 um, 62 % of
+    # the level, at its length bound) stood in for it: reversal_transient on 16 of the
+    # seed's 18 traces, the effect-free one first (encoder.py)
+    gen, outcome = diagnosed("none", 261, trace_dir)
+    assert outcome.named == "none", _describe(gen, outcome)
+    assert outcome.result["baseline"]["breakaway_m"][0] < 0.5e-6
+
+
 def test_a_transient_beside_a_drift_is_not_left_as_a_spot(trace_dir: Path) -> None:
     # pair_drift_reversal_transient-209 (kappa -0.30 over 16 s, a 1.28 N transient over
     # 0.12 mm): at 5da264b the transient came out 0 mm long and a spot it left (+0.58 N
