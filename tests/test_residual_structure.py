@@ -10,6 +10,7 @@ import numpy as np
 from scipy import signal
 
 from gms_comp.measured.diagnosis import structure as st
+from gms_comp.measured.diagnosis.phases import phase_masks
 from gms_comp.runtime import effects as fx
 
 NOISE = 0.1
@@ -181,6 +182,11 @@ def _step_and_stop(fs: float = 2000.0) -> SimpleNamespace:
     return SimpleNamespace(ctx=ctx, part=SimpleNamespace(path_position_m=x))
 
 
+def _rest(part: SimpleNamespace) -> list[np.ndarray]:
+    """The part's standstill phase (presliding 10 um)."""
+    return [phase_masks(part.ctx, 1e-5)["standstill"]]
+
+
 def test_coloured_noise_read_at_standstill_is_noise_not_an_unexplained_residual() -> None:
     # a sensor's noise low-passed far below the sampling rate: its sample-to-sample
     # differences see a fraction of it, so the residual stands many times "the noise";
@@ -195,17 +201,17 @@ def test_coloured_noise_read_at_standstill_is_noise_not_an_unexplained_residual(
     diff_noise = st._noise(coloured)
     assert diff_noise < 0.2 * 0.4
     assert st._unexplained(coloured, diff_noise, 0.03 * level, level) is not None
-    still = st._still_noise([part], [coloured], 1e-5)  # type: ignore[list-item]
+    still = st._still_noise([part], [coloured], _rest(part))  # type: ignore[list-item]
     assert abs(still - 0.4) < 0.06
     assert st._unexplained(coloured, max(diff_noise, still), 0.03 * level, level) is None
     # white noise: at rest and from the differences alike; a misfit in motion only (a
     # level 0.5 N off, of opposite sign each way) leaves the standstills' reading as it was
     white = rng.normal(0, NOISE, n)
     misfit = white + 0.5 * np.sign(part.ctx.velocity_m_s)
-    still_white = st._still_noise([part], [misfit], 1e-5)  # type: ignore[list-item]
+    still_white = st._still_noise([part], [misfit], _rest(part))  # type: ignore[list-item]
     assert abs(still_white / st._noise(white) - 1.0) < 0.05
     assert st._unexplained(misfit, max(st._noise(misfit), still_white), 0.3, level) is not None
     # too little standstill to read: 0, the differences decide
     short = _step_and_stop(fs=100.0)
     r = rng.normal(0, NOISE, short.ctx.time_s.size)
-    assert st._still_noise([short], [r], 1e-5) == 0.0  # type: ignore[list-item]
+    assert st._still_noise([short], [r], _rest(short)) == 0.0  # type: ignore[list-item]

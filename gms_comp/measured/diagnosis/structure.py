@@ -21,7 +21,7 @@ import numpy as np
 
 from gms_comp.arrays import BoolArray, FloatArray
 from gms_comp.measured.diagnosis.baseline import FittedPart
-from gms_comp.measured.diagnosis.design import rms
+from gms_comp.measured.diagnosis.design import rms, runs
 from gms_comp.measured.diagnosis.phases import ACCELERATION_FRACTION, phase_label, phase_masks
 
 BINS = 16
@@ -180,7 +180,7 @@ def residual_structure(
     is at least ``ratio`` x the noise and ``fraction`` x ``level_N``, or the residual
     itself ``UNEXPLAINED_RATIO`` x the noise and above it ``fraction`` x ``level_N``."""
     residuals = [fp.part.force_N - y for fp, y in zip(parts, predictions, strict=True)]
-    res, vel, pos, dirn, t, phase = [], [], [], [], [], []
+    res, vel, pos, dirn, t, phase, rest = [], [], [], [], [], [], []
     for j, (fp, residual) in enumerate(zip(parts, residuals, strict=True)):
         held = fp.part.held
         res.append(residual[held])
@@ -189,7 +189,9 @@ def residual_structure(
         dirn.append(fp.ctx.direction[held])
         t.append(fp.ctx.time_s[held] + 1e6 * j)
         labels = np.full(held.size, -1.0)
-        for i, mask in enumerate(phase_masks(fp.ctx, presliding_m).values()):
+        masks = phase_masks(fp.ctx, presliding_m)
+        rest.append(masks["standstill"])
+        for i, mask in enumerate(masks.values()):
             labels[mask & (labels < 0)] = i + 100 * j
         phase.append(labels[held])
     r = np.concatenate(res)
@@ -230,7 +232,7 @@ def residual_structure(
     if structured:
         unexplained = None
     else:
-        still = _still_noise(parts, residuals, presliding_m)
+        still = _still_noise(parts, residuals, rest)
         unexplained = _unexplained(r, max(noise, still), fraction * level_N, level_N)
     if unexplained is not None:
         findings.insert(0, unexplained)
@@ -258,21 +260,21 @@ def _unexplained(
 
 
 def _still_noise(
-    parts: Sequence[FittedPart], residuals: Sequence[FloatArray], presliding_m: float
+    parts: Sequence[FittedPart], residuals: Sequence[FloatArray], standstill: Sequence[BoolArray]
 ) -> float:
-    """The residual's RMS at rest, each standstill of ``STILL_RUN_SAMPLES`` or more less
-    its straight line; 0 with fewer than ``STILL_SAMPLES`` such samples."""
+    """The residual's RMS at rest (each part's ``standstill`` phase where its measured
+    counts do not change), each run of ``STILL_RUN_SAMPLES`` or more less its straight
+    line; 0 with fewer than ``STILL_SAMPLES`` such samples."""
     left: list[FloatArray] = []
-    for fp, residual in zip(parts, residuals, strict=True):
-        x = fp.part.path_position_m  # measured: its counts do not change at rest
-        still = phase_masks(fp.ctx, presliding_m)["standstill"]
+    for fp, residual, phase in zip(parts, residuals, standstill, strict=True):
+        x = fp.part.path_position_m
+        still = phase.copy()
         still[1:] &= x[1:] == x[:-1]
         still[0] = False
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(np.int8), [0]])))
-        for start, stop in zip(edges[::2], edges[1::2], strict=True):
-            if stop - start >= STILL_RUN_SAMPLES:
-                k = np.arange(stop - start, dtype=np.float64)
-                segment = residual[start:stop]
+        for rows in runs(still):
+            if rows.size >= STILL_RUN_SAMPLES:
+                k = np.arange(rows.size, dtype=np.float64)
+                segment = residual[rows]
                 left.append(segment - np.polyval(np.polyfit(k, segment, 1), k))
     n = sum(a.size for a in left)
     if n < STILL_SAMPLES:
