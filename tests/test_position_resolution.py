@@ -8,11 +8,12 @@ import json
 import numpy as np
 import pytest
 from indepgen import baseline, make_trace
+from scipy import signal
 
 from gms_comp.app.commands.diagnose import summary
 from gms_comp.measured.diagnosis.encoder import encoder_step, position_resolution
 from gms_comp.measured.diagnosis.motion import dequantised
-from gms_comp.measured.diagnosis.prepare import force_noise
+from gms_comp.measured.diagnosis.prepare import force_noise, noise_at_rest
 from gms_comp.measured.diagnosis.run import diagnose
 from gms_comp.measured.traces import Trace
 
@@ -136,3 +137,21 @@ def test_an_effect_far_above_the_noise_does_not_hide_what_the_counts_cost() -> N
     assert d.ranked[0].effect.parameters()["offset_N"] == pytest.approx(true_offset, rel=0.05)
     # the extended model holds out within 10 % of the force's noise
     assert d.extended_rms_N < 1.1 * gen.noise_N
+
+
+def test_the_force_noise_at_rest_reads_low_passed_noise_the_differences_miss() -> None:
+    # a step-and-stop path on a 10 nm encoder: 0.5 s moves, 0.4 s rests, force noise
+    # low-passed at 5 % of the 2 kHz rate (a sensor's filter), 0.07 N standard deviation
+    rng = np.random.default_rng(7)
+    fs, q = 2000.0, 10e-9
+    v = np.concatenate([np.concatenate([np.full(1000, s * 5e-3), np.zeros(800)])
+                        for s in (1.0, -1.0) * 10])  # fmt: skip
+    x = np.round(np.cumsum(v) / fs / q) * q
+    sos = signal.butter(2, 100.0, fs=fs, output="sos")
+    coloured = signal.sosfiltfilt(sos, rng.normal(size=x.size))
+    coloured *= 0.07 / np.std(coloured)
+    force = 3.0 * np.sign(v) + coloured  # a level that holds at rest
+    assert force_noise(force) < 0.2 * 0.07  # the second differences see little of it
+    assert noise_at_rest(force, x) == pytest.approx(0.07, rel=0.1)
+    white = 3.0 * np.sign(v) + rng.normal(0.0, 0.07, x.size)
+    assert noise_at_rest(white, x) == pytest.approx(force_noise(white), rel=0.05)

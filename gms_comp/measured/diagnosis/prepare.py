@@ -18,6 +18,7 @@ from scipy import stats
 from gms_comp.arrays import BoolArray, FloatArray, IntArray
 from gms_comp.gms import GmsParams
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.design import runs
 from gms_comp.measured.diagnosis.encoder import step_and_resolution
 from gms_comp.measured.diagnosis.motion import Kinematics, dequantised, kinematics
 from gms_comp.measured.traces import ForceKind, Trace
@@ -25,6 +26,10 @@ from gms_comp.runtime import effects as fx
 from gms_comp.runtime.effects.path import REST_HOLD_S
 from gms_comp.validation import InputError
 
+# The noise read at rest (:func:`rest_rms`): on standstills of REST_RUN_SAMPLES or more,
+# from REST_SAMPLES in all.
+REST_RUN_SAMPLES = 50
+REST_SAMPLES = 1000
 # The benchmark's low-pass for a drive force's kinematics.
 DRIVE_CUTOFF_HZ = 100.0
 # A friction force's acceleration (an inertia effect's column) is low-passed where its
@@ -174,6 +179,35 @@ def force_noise(force_N: FloatArray) -> float:
     if d2.size == 0:
         return 0.0
     return float(stats.median_abs_deviation(d2, scale="normal")) / np.sqrt(6.0)
+
+
+def rest_rms(values: FloatArray, still: BoolArray) -> float:
+    """RMS of ``values`` over the runs of ``still`` of ``REST_RUN_SAMPLES`` or more, each
+    less its straight line (a held level, a slow settling); 0 with fewer than
+    ``REST_SAMPLES`` such samples."""
+    left: list[FloatArray] = []
+    for rows in runs(still):
+        if rows.size >= REST_RUN_SAMPLES:
+            k = np.arange(rows.size, dtype=np.float64)
+            run = values[rows]
+            left.append(run - np.polyval(np.polyfit(k, run, 1), k))
+    n = sum(a.size for a in left)
+    if n < REST_SAMPLES:
+        return 0.0
+    return float(np.sqrt(sum(float(np.sum(a**2)) for a in left) / (n - 2 * len(left))))
+
+
+def unchanged(position_m: FloatArray) -> BoolArray:
+    """The samples whose position reads as the one before (an encoder's counts at rest)."""
+    same = np.zeros(position_m.size, dtype=bool)
+    same[1:] = position_m[1:] == position_m[:-1]
+    return same
+
+
+def noise_at_rest(force_N: FloatArray, position_m: FloatArray) -> float:
+    """The force's noise, white or not: :func:`force_noise`, or the force's spread at rest
+    (:func:`rest_rms` where the counts do not change) where that is larger."""
+    return max(force_noise(force_N), rest_rms(force_N, unchanged(position_m)))
 
 
 def encoder_force_ratio(gms: GmsParams, prepared: Prepared) -> float:

@@ -38,7 +38,7 @@ from gms_comp.measured.diagnosis.level_free import (
     FreeLevel,
     stribeck_with_level,
 )
-from gms_comp.measured.diagnosis.prepare import force_noise
+from gms_comp.measured.diagnosis.prepare import noise_at_rest
 from gms_comp.runtime import effects as fx
 
 # Relative steps of the local search on shape parameters after the grid, and the most
@@ -136,7 +136,8 @@ def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: floa
         # events may have none or one held out (and the held-out RMS not lowered)
         judge = scorer.judge  # on every sample
         local0, local1 = judge.left_out(trial)
-        noise = force_noise(judge.parts[0].part.force_N)
+        main = judge.parts[0].part
+        noise = noise_at_rest(main.force_N, main.path_position_m)
         worth = lowers_locally(cfg, local0, local1, noise)
     apart = scorer.told_apart(trial.option)
     if worth and apart is not None:

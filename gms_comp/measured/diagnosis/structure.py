@@ -21,8 +21,9 @@ import numpy as np
 
 from gms_comp.arrays import BoolArray, FloatArray
 from gms_comp.measured.diagnosis.baseline import FittedPart
-from gms_comp.measured.diagnosis.design import rms, runs
+from gms_comp.measured.diagnosis.design import rms
 from gms_comp.measured.diagnosis.phases import ACCELERATION_FRACTION, phase_label, phase_masks
+from gms_comp.measured.diagnosis.prepare import rest_rms, unchanged
 
 BINS = 16
 # per direction: a local feature (a bump, a damaged spot) is a fraction of a mm wide
@@ -87,10 +88,8 @@ UNEXPLAINED_RATIO = 3.0
 # less each standstill's straight line (a held level's misfit, a slow settling), is the
 # noise, coloured or not: 0.38 N for that trace's 0.40 N. Slower than the standstill
 # speed is not at rest: read so, unknown_stroke_profile-249's slow moves read 1.9 x its
-# white noise and it was named stribeck again. Read on standstills of STILL_RUN_SAMPLES
-# or more, from STILL_SAMPLES in all (else the differences alone).
-STILL_RUN_SAMPLES = 50
-STILL_SAMPLES = 1000
+# white noise and it was named stribeck again. Read as prepare.rest_rms reads it (else
+# the differences alone).
 # The most findings a description names.
 DESCRIBED = 3
 
@@ -262,24 +261,13 @@ def _unexplained(
 def _still_noise(
     parts: Sequence[FittedPart], residuals: Sequence[FloatArray], standstill: Sequence[BoolArray]
 ) -> float:
-    """The residual's RMS at rest (each part's ``standstill`` phase where its measured
-    counts do not change), each run of ``STILL_RUN_SAMPLES`` or more less its straight
-    line; 0 with fewer than ``STILL_SAMPLES`` such samples."""
-    left: list[FloatArray] = []
-    for fp, residual, phase in zip(parts, residuals, standstill, strict=True):
-        x = fp.part.path_position_m
-        still = phase.copy()
-        still[1:] &= x[1:] == x[:-1]
-        still[0] = False
-        for rows in runs(still):
-            if rows.size >= STILL_RUN_SAMPLES:
-                k = np.arange(rows.size, dtype=np.float64)
-                segment = residual[rows]
-                left.append(segment - np.polyval(np.polyfit(k, segment, 1), k))
-    n = sum(a.size for a in left)
-    if n < STILL_SAMPLES:
-        return 0.0
-    return float(np.sqrt(sum(float(np.sum(a**2)) for a in left) / (n - 2 * len(left))))
+    """The residual's RMS at rest (:func:`~.prepare.rest_rms` on each part's ``standstill``
+    phase where its measured counts do not change)."""
+    still = [
+        phase & unchanged(fp.part.path_position_m)
+        for fp, phase in zip(parts, standstill, strict=True)
+    ]
+    return rest_rms(np.concatenate(residuals), np.concatenate(still))
 
 
 def _noise(residual: FloatArray) -> float:
