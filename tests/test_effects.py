@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 from scipy import signal
 
 from gms_comp.gms import GmsParams, simulate
-from gms_comp.measured.diagnosis.candidates import Option
-from gms_comp.measured.diagnosis.selection import local_search
+from gms_comp.measured.diagnosis.candidates import Option, where_acting
+from gms_comp.measured.diagnosis.selection import LOCAL_SHARE, local_search
 from gms_comp.runtime import effects as fx
 from gms_comp.runtime.effects import dwell_time, leftover
 
@@ -351,6 +351,31 @@ def test_stribeck_form_scales_the_gms_force() -> None:
     ctx = fx.Context.along(t, 0 * t, np.full_like(t, 1e-3), 0 * t, f)
     out = fx.Stribeck(1.5, 1e-3).apply(ctx, f)
     np.testing.assert_allclose(out, 10.0 * (1 + 0.5 * math.exp(-1.0)))
+
+
+def test_a_stribeck_fall_acts_where_it_stops_scaling_the_gms_force() -> None:
+    """Slow moves (1 mm/s) with one fast move (20 mm/s, 2 % of the rows) over a Stribeck
+    speed of 8 mm/s: the bump's column is the GMS force nearly everywhere (most rows
+    by energy); its departure, basis and departure adding up to the GMS force, acts on
+    the fast move alone, few rows by the support rule the diagnosis reads."""
+    n = 5000
+    t = np.arange(n) * 1e-3
+    v = np.full(n, 1e-3)
+    v[2000:2100] = 20e-3
+    x = np.cumsum(v) * 1e-3
+    f = np.full(n, 4.0)
+    ctx = fx.Context.along(t, x, v, 0 * t, f)
+    shape = {"v_s_m_per_s": 8e-3}
+    basis = fx.Stribeck.basis(ctx, shape)[:, 0]
+    departure = fx.Stribeck.departure(ctx, shape)
+    np.testing.assert_allclose(basis + departure, f, rtol=1e-12)
+    assert fx.Viscous.departure(ctx, {}) is None
+    fast = np.zeros(n, dtype=bool)
+    fast[2000:2100] = True
+    acting = where_acting(departure[:, None])  # the rows holding 90 % of its energy
+    assert not np.any(acting & ~fast) and np.count_nonzero(acting) >= 0.85 * fast.sum()
+    # the bump read as the rows it acts on: most of them, not an effect at few rows
+    assert np.count_nonzero(where_acting(basis[:, None])) > 0.8 * n > LOCAL_SHARE * n
 
 
 def test_a_direction_asymmetry_is_told_apart_at_speeds_reached_both_ways() -> None:

@@ -72,6 +72,12 @@ class Option:
         values = through(filters, fp.effect_basis(self.effect, self.shape), fp.ctx.sample_time_s)
         return Columns(values, np.full(values.shape[1], self.effect.COEFFICIENT_LOWER))
 
+    def acting(self, fp: FittedPart, columns: Columns) -> FloatArray:
+        """Values along ``fp`` whose large rows are where the option acts: its
+        ``columns`` there, or the effect's own departure from the baseline."""
+        departure = self.effect.departure(fp.ctx, self.shape)
+        return columns.values if departure is None else departure[:, None]
+
     def with_value(self, key: str, value: float) -> Option:
         """The option with one shape parameter changed."""
         return Option(self.effect, {**self.shape, key: value})
@@ -202,9 +208,11 @@ class Scorer:
                 continue
             extra, (theta, held) = scored[id(opt)]
 
-            def support(extra: list[Columns] = extra) -> BoolArray:
+            def support(opt: Option = opt, extra: list[Columns] = extra) -> BoolArray:
                 pairs = zip(extra, self.parts, strict=True)
-                return np.concatenate([where_acting(e.values[fp.part.held]) for e, fp in pairs])
+                return np.concatenate(
+                    [where_acting(opt.acting(fp, e)[fp.part.held]) for e, fp in pairs]
+                )
 
             out.append(Trial(opt, rms(held), theta, held, support))
         return out
@@ -261,7 +269,7 @@ class Scorer:
         events = []
         for e, fp in zip(extra, self.parts, strict=True):
             gap = max(1, round(EVENT_GAP_S / max(fp.ctx.sample_time_s, 1e-12)))
-            events.append(runs(where_acting(e.values), gap))
+            events.append(runs(where_acting(trial.option.acting(fp, e)), gap))
         return self.gram.left_out(extra, events, LEFT_OUT_FOLDS)
 
     def told_apart(self, opt: Option) -> BoolArray | None:

@@ -104,6 +104,14 @@ class Effect:
         return dict(shape)
 
     @classmethod
+    def departure(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray | None:
+        """Where the effect departs from what the baseline carries, as values along
+        ``ctx`` whose large rows are where it acts (None: its basis). A column that is
+        the GMS force scaled most of the time (a Stribeck bump at slow speeds) acts
+        where it stops scaling it."""
+        return None
+
+    @classmethod
     def told_apart(cls, ctxs: Sequence[Context]) -> list[BoolArray] | None:
         """The rows along each of ``ctxs`` (the parts of one diagnosis, judged together)
         whose motion can tell this effect from the others it could stand in for, where

@@ -32,6 +32,13 @@ class Stribeck(Effect):
         return (ctx.gms_force_N * np.exp(-(u * u)))[:, None]
 
     @classmethod
+    def departure(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:
+        """The fall itself, the GMS force times 1 - the bump: at slow speeds the bump
+        is the GMS force the baseline's limits already carry."""
+        u = ctx.velocity_m_s / shape["v_s_m_per_s"]
+        return ctx.gms_force_N * -np.expm1(-(u * u))
+
+    @classmethod
     def from_coefficients(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Effect:
         """The effect with ``ratio - 1 = coefficients[0]``."""
         return cls(1.0 + float(coefficients[0]), shape["v_s_m_per_s"])
