@@ -5,8 +5,10 @@ effects kept so far, refines the best shape of each effect that helps by a bound
 search, and keeps the admissible effect with the lowest held-out RMS. An effect is
 admissible if it lowers the held-out RMS by more than ``margin`` (relative), or by a
 smaller but significant step (t statistic over held-out chunks); an effect that acts on
-few samples (a dwell gain at break-aways) is also judged where it acts, at every event by
-a fit that did not see it (the held-out rows may hold none of its events); and in any case
+few samples (a dwell gain at break-aways; a Stribeck fall on a trace with few fast moves,
+where it departs from the GMS force: ``Effect.departure``) is also judged where it acts,
+at every event by a fit that did not see it (the held-out rows may hold none of its
+events); and in any case
 it must change the model force somewhere by ``min_effect_fraction`` of the sliding force
 (on clean traces tiny stray terms always lower the held-out error a little). An effect
 that names the rows where the motion tells it from others (``Effect.told_apart``: a
