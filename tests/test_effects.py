@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 from scipy import signal
 
 from gms_comp.gms import GmsParams, simulate
-from gms_comp.measured.diagnosis.candidates import Option, where_acting
-from gms_comp.measured.diagnosis.selection import LOCAL_SHARE, local_search
+from gms_comp.measured.diagnosis.candidates import LOCAL_SHARE, Option, where_acting
+from gms_comp.measured.diagnosis.selection import local_search
 from gms_comp.runtime import effects as fx
 from gms_comp.runtime.effects import dwell_time, leftover
 

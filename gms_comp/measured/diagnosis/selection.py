@@ -32,7 +32,14 @@ import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.measured.diagnosis.baseline import Baseline, FittedPart, placed_on
-from gms_comp.measured.diagnosis.candidates import Option, Scorer, Trial, options
+from gms_comp.measured.diagnosis.candidates import (
+    Option,
+    Scorer,
+    Trial,
+    acts_locally,
+    best_held_out,
+    options,
+)
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.gain import lowers, lowers_locally
 from gms_comp.measured.diagnosis.level_free import (
@@ -59,9 +66,7 @@ MAX_PASSES = 4
 CONSISTENCY_STEPS = 8
 CONSISTENCY_CONVERGED = 1.1
 CONSISTENT_WITHIN = 1.5
-# An effect acting on less than this share of the held-out samples is judged there; its
-# shape is searched from the LOCAL_STARTS best of its grid (:func:`_local_shape`).
-LOCAL_SHARE = 0.25
+# An effect acting locally has its shape from the LOCAL_STARTS best of its grid.
 LOCAL_STARTS = 3
 # Shape keys the local search does not step (a filter's order, a dwell gain's form). An
 # effect judged where it acts searches each value's shape (a form worth an effect first,
@@ -182,7 +187,7 @@ def select(
             trials = scorer.score_all(options(effect, scorer, baseline.presliding_m))
             if not trials:
                 continue
-            best = min(trials, key=lambda t: t.heldout_rms_N)
+            best = best_held_out(scorer.theta.size, trials)
             if acts_locally(best):
                 # its shape from all its events (the held-out rows may hold one or none),
                 # each form's apart: the forms worth an effect first, then held out
@@ -358,11 +363,6 @@ def _polish(
 def _shape_key(opt: Option) -> tuple[tuple[str, float], ...]:
     """``opt``'s shape as a hashable key."""
     return tuple(sorted(opt.shape.items()))
-
-
-def acts_locally(trial: Trial) -> bool:
-    """Whether ``trial``'s option acts on less than ``LOCAL_SHARE`` of the held-out rows."""
-    return bool(np.count_nonzero(trial.support) < LOCAL_SHARE * trial.support.size)
 
 
 def _consistent(scorer: Scorer, trial: Trial) -> Trial:
