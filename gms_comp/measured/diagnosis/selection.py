@@ -8,9 +8,9 @@ smaller but significant step (t statistic over held-out chunks); an effect that 
 few samples (a dwell gain at break-aways; a Stribeck fall on a trace with few fast moves,
 where it departs from the GMS force: ``Effect.departure``) is also judged where it acts,
 at every event by a fit that did not see it (the held-out rows may hold none of its
-events); and in any case
-it must change the model force somewhere by ``min_effect_fraction`` of the sliding force
-(on clean traces tiny stray terms always lower the held-out error a little). An effect
+events); and in any case it must change the model force somewhere by
+``min_effect_fraction`` of the sliding force (on clean traces tiny stray terms always
+lower the held-out error a little). An effect
 that names the rows where the motion tells it from others (``Effect.told_apart``: a
 direction asymmetry, at speeds the trace reaches both ways) must lower it there too. In the
 first ``FREE_LEVEL_ROUNDS`` rounds Stribeck is also scored with the baseline's slip
