@@ -12,7 +12,13 @@ from hypothesis import strategies as st
 from scipy import signal
 
 from gms_comp.gms import GmsParams, simulate
-from gms_comp.measured.diagnosis.candidates import LOCAL_SHARE, Option, where_acting
+from gms_comp.measured.diagnosis.candidates import (
+    LOCAL_SHARE,
+    Option,
+    Trial,
+    best_held_out,
+    where_acting,
+)
 from gms_comp.measured.diagnosis.selection import local_search
 from gms_comp.runtime import effects as fx
 from gms_comp.runtime.effects import dwell_time, leftover
@@ -645,3 +651,30 @@ def _other_elements(params: GmsParams) -> GmsParams:
     return dataclasses.replace(
         params, limit_N=params.limit_N * 1.7, stiffness_N_per_m=params.stiffness_N_per_m * 0.6
     )
+
+
+def test_a_trial_fitted_at_zero_gives_way_to_a_local_one_fitted_above_it() -> None:
+    """Of a grid's trials, the best held out is taken, unless it is the design as it was
+    (its effect fitted at zero) acting on many rows: then the best of those fitted above
+    zero that act on few rows, to be judged at their events; else it stays."""
+    n, m = 1000, 2
+
+    def trial(v_s: float, coefficient: float, held_out: float, acting: int) -> Trial:
+        support = np.zeros(n, dtype=bool)
+        support[:acting] = True
+        theta = np.array([1.0, 0.5, coefficient])
+        option = Option(fx.Stribeck, {"v_s_m_per_s": v_s})
+        return Trial(option, held_out, theta, np.zeros(n), lambda: support)
+
+    at_zero = trial(1e-3, 0.0, 1.00, 500)
+    local = trial(7e-3, 0.2, 1.01, 50)
+    local_worse = trial(9e-3, 0.1, 1.03, 40)
+    spread = trial(3e-3, 0.3, 1.02, 600)
+    assert best_held_out(m, [spread, at_zero, local_worse, local]) is local
+    # none fitted above zero acts locally: the best held out
+    assert best_held_out(m, [spread, at_zero]) is at_zero
+    # the best held out fitted above zero, or acting locally itself: kept
+    lower = trial(5e-3, 0.1, 0.99, 600)
+    assert best_held_out(m, [lower, at_zero, local]) is lower
+    local_zero = trial(8e-3, 0.0, 1.00, 30)
+    assert best_held_out(m, [local_zero, local]) is local_zero
