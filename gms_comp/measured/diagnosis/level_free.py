@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gms_comp.measured.diagnosis.baseline import Baseline, fitted_on
+from gms_comp.measured.diagnosis.baseline import Baseline, fitted_on, refit_gms_force
 from gms_comp.measured.diagnosis.basis import FreeBasis
 from gms_comp.measured.diagnosis.candidates import Scorer, Trial, options
 from gms_comp.measured.diagnosis.prepare import force_noise
@@ -93,6 +93,11 @@ def stribeck_with_level(
             fitted[key] = fitted_on(baseline.prepared, level, baseline.info)
         rebased = fitted[key]
         scorer = Scorer(rebased.parts, chosen)
+        if chosen:
+            # the GMS force that Stribeck scales, fitted beside the effects kept
+            parts = refit_gms_force(rebased.parts, scorer.theta, rebased.basis)
+            rebased = dataclasses.replace(rebased, parts=parts)
+            scorer = Scorer(parts, chosen)
         if plain is None or scorer.heldout_rms_N < plain.heldout_rms_N:
             plain = scorer
         grid = options(fx.Stribeck, scorer, rebased.presliding_m)

@@ -22,6 +22,7 @@ from scipy import optimize
 
 from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams, simulate
+from gms_comp.measured.diagnosis.agreement import agreed
 from gms_comp.measured.diagnosis.baseline import (
     Baseline,
     Basis,
@@ -47,13 +48,7 @@ from gms_comp.measured.diagnosis.candidates import (
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
 from gms_comp.measured.diagnosis.gain import lowers
-from gms_comp.measured.diagnosis.selection import (
-    DISCRETE,
-    Selection,
-    admissible,
-    agreed,
-    local_search,
-)
+from gms_comp.measured.diagnosis.selection import DISCRETE, Selection, admissible, local_search
 from gms_comp.measured.diagnosis.sensed import sensed_again
 from gms_comp.measured.diagnosis.slip_level import SLIP_LEVEL_RANGE, transition_range
 from gms_comp.runtime import effects as fx

@@ -24,14 +24,19 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TypeVar
 
 import numpy as np
 
 from gms_comp.arrays import FloatArray
-from gms_comp.measured.diagnosis.baseline import Baseline, FittedPart, placed_on
+from gms_comp.measured.diagnosis.agreement import agreed, agreement
+from gms_comp.measured.diagnosis.baseline import (
+    Baseline,
+    FittedPart,
+    placed_on,
+    refit_gms_force,
+)
 from gms_comp.measured.diagnosis.candidates import (
     Option,
     Scorer,
@@ -41,6 +46,7 @@ from gms_comp.measured.diagnosis.candidates import (
     options,
 )
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.design import rms
 from gms_comp.measured.diagnosis.gain import lowers, lowers_locally
 from gms_comp.measured.diagnosis.level_free import (
     FREE_LEVEL_ROUNDS,
@@ -54,17 +60,8 @@ from gms_comp.runtime import effects as fx
 # passes over the parameters at each step.
 REFINE_STEPS = (1.3, 1.08)
 MAX_PASSES = 4
-# Fixed-point steps that make a shape agree with the size fitted on it, and how far
-# apart the two may be for the effect to be kept (a factor). Each step goes halfway (in
-# log) to the shape the size implies: a dwell's fitted gain falls as its windows' gain
-# rises (slope -0.8 in log near agreement), so full steps oscillate about it (three
-# left a factor 1.4); half steps converge in two. Where it does not fall smoothly (an
-# element that holds through a presliding run at one gain and slips at a slightly larger
-# one: dwell_time-117 of the independent generator, fitted 0.060 at 0.10 and 0.014 at
-# 0.11), half steps jumped across it four times; once the steps have gone both ways,
-# each bisects (in log) between the nearest gains on either side; the best fit returns.
-CONSISTENCY_STEPS = 8
-CONSISTENCY_CONVERGED = 1.1
+# How far apart (a factor) a shape and the one its fitted size implies may be for the
+# effect to be kept (:func:`.agreement.agreed` steps them together first).
 CONSISTENT_WITHIN = 1.5
 # An effect acting locally has its shape from the LOCAL_STARTS best of its grid.
 LOCAL_STARTS = 3
@@ -99,6 +96,8 @@ class Selection:
     first_round: tuple[float, tuple[Trial, ...]] = (0.0, ())
     # the level-free grid's baselines fitted so far (a cache, for a selection resumed)
     levels: dict[tuple[float, float], Baseline] = field(default_factory=dict, compare=False)
+    # the coefficients of the last kept trial, whose GMS force the next round scales
+    gms_theta: FloatArray | None = field(default=None, compare=False)
 
 
 def local_search(
@@ -176,7 +175,8 @@ def select(
     chosen, history, last = list(was.chosen), list(was.heldout_rms_N), list(was.last_round)
     pool = [e for e in pool if e not in {o.effect for o in chosen}]
     baseline, level_from, first, levels = was.baseline, was.level_from, was.first_round, was.levels
-    parts, every = baseline.parts, _every_sample(baseline)
+    gms_theta = was.gms_theta
+    parts, every = _gms_from(baseline, gms_theta)
     level = (level_from or baseline).sliding_force_N
     while pool and len(chosen) < cfg.max_effects:
         scorer = Scorer(parts, chosen, every)
@@ -212,24 +212,40 @@ def select(
             if free is not None:
                 # Stribeck at another slip level: the selection goes on from that level
                 level_from = level_from or baseline
-                baseline, parts, take = free.baseline, free.baseline.parts, free.trial
-                every = _every_sample(baseline)
+                baseline, take = free.baseline, free.trial
                 last = [take if t.option.effect is fx.Stribeck else t for t in last]
         if take is None:
             break
         chosen.append(take.option)
         history.append(take.heldout_rms_N)
         pool.remove(take.option.effect)
+        gms_theta = take.theta
+        parts, every = _gms_from(baseline, gms_theta)
     return Selection(
-        baseline, tuple(chosen), tuple(history), tuple(last), level_from, first, levels
-    )
+        baseline, tuple(chosen), tuple(history), tuple(last), level_from, first, levels,
+        gms_theta,
+    )  # fmt: skip
 
 
-def _every_sample(baseline: Baseline) -> Callable[[], tuple[FittedPart, ...]] | None:
-    """``baseline``'s parts along every sample (placed when first asked), if it is
-    fitted on every k-th sample; else None."""
+def _gms_from(
+    baseline: Baseline, theta: FloatArray | None
+) -> tuple[tuple[FittedPart, ...], Callable[[], tuple[FittedPart, ...]] | None]:
+    """``baseline``'s parts with the GMS force (and elements) of the coefficients
+    ``theta`` (a joint fit with the effects kept; None: the baseline's own), and the
+    same along every sample (placed when first asked) where the parts are every k-th.
+    The effects that scale the GMS force scale the one fitted beside the kept effects:
+    on pair_offset_stribeck-259 of the independent generator the baseline fitted alone
+    absorbed an offset of 30 % of the level into its limits (its force 17.8 N off where
+    fitted beside the offset), and a Stribeck fall on it held out 0.988 N against the
+    0.958 N of one on the force fitted beside the offset (noise 0.953 N)."""
+    basis = baseline.basis
+
+    def gms(parts: tuple[FittedPart, ...]) -> tuple[FittedPart, ...]:
+        return parts if theta is None else refit_gms_force(parts, theta, basis)
+
     full = baseline.prepared.every_sample
-    return None if full is None else functools.cache(lambda: placed_on(full, baseline).parts)
+    every = None if full is None else functools.cache(lambda: gms(placed_on(full, baseline).parts))
+    return gms(baseline.parts), every
 
 
 def _free_level(
@@ -248,11 +264,11 @@ def _free_level(
         return None
     trial = _consistent(free.scorer, _refine(free.scorer, free.trial, free.baseline.presliding_m))
     others = [t for t in rivals if t.option.effect is not fx.Stribeck]
-    here = [scorer.heldout_rms_N, *(t.heldout_rms_N for t in others)]
+    here = [scorer.held_residual_N, *(t.held_residual_N for t in others)]
     levels = [free.scorer] if free.plain is free.scorer else [free.scorer, free.plain]
-    there = [s.heldout_rms_N for s in levels]
-    there += [s.score(t.option).heldout_rms_N for s in levels for t in others]
-    if trial.heldout_rms_N > (1.0 - cfg.margin) * min(here + there):
+    there = [s.held_residual_N for s in levels]
+    there += [s.score(t.option).held_residual_N for s in levels for t in others]
+    if not lowers(cfg, min(here + there, key=rms), trial.held_residual_N):
         return None
     if not admissible(cfg, free.scorer, trial, level_N):
         return None
@@ -371,59 +387,6 @@ def _consistent(scorer: Scorer, trial: Trial) -> Trial:
     return agreed(trial, lambda t: t.option, lambda t: t.theta[m:], scorer.score)
 
 
-Fitted = TypeVar("Fitted")
-
-
-def agreed(
-    first: Fitted, option: Callable[[Fitted], Option],
-    coefficients: Callable[[Fitted], FloatArray], fit: Callable[[Option], Fitted],
-) -> Fitted:  # fmt: skip
-    """``first`` (an option fitted) with its shape made to agree with its fitted size: at
-    most ``CONSISTENCY_STEPS`` steps towards the shape of the effect's own rule
-    (:meth:`~gms_comp.runtime.effects.Effect.consistent_shape`; halfway, then bisecting
-    once it has been passed, see ``CONSISTENCY_STEPS``), each one fitted by ``fit``;
-    ``option`` and ``coefficients`` read a fit's option and its own coefficients.
-    Returns the first fit that agrees within ``CONSISTENCY_CONVERGED``, else the one
-    that agrees best."""
-    current = best = first
-    best_factor = np.inf
-    below: dict[str, float] = {}  # per key: the last value whose agreed value was larger
-    above: dict[str, float] = {}  # ... and smaller
-    for _ in range(CONSISTENCY_STEPS):
-        opt = option(current)
-        shape, factor = agreement(opt, coefficients(current))
-        if factor < best_factor:
-            best, best_factor = current, factor
-        if factor <= CONSISTENCY_CONVERGED:
-            return current
-        for k, v in opt.shape.items():
-            if shape[k] != v:
-                (below if shape[k] > v else above)[k] = v
-        current = fit(Option(opt.effect, _step(opt.shape, shape, below, above)))
-    return current if agreement(option(current), coefficients(current))[1] < best_factor else best
-
-
-def _step(
-    shape: Mapping[str, float], agreed: Mapping[str, float], below: Mapping[str, float],
-    above: Mapping[str, float],
-) -> dict[str, float]:  # fmt: skip
-    """The next shape towards agreement: halfway (:func:`halfway`), or for a key that has
-    been on both sides of it, the geometric mean of the nearest values on either side."""
-    step = halfway(shape, agreed)
-    for k in step:
-        if below.get(k, 0.0) > 0.0 and above.get(k, 0.0) > 0.0:
-            step[k] = float(np.sqrt(below[k] * above[k]))
-    return step
-
-
-def halfway(shape: Mapping[str, float], agreed: Mapping[str, float]) -> dict[str, float]:
-    """A step from ``shape`` halfway to ``agreed`` (geometric mean of positive values)."""
-    return {
-        k: float(np.sqrt(v * agreed[k])) if v > 0 and agreed[k] > 0 else agreed[k]
-        for k, v in shape.items()
-    }
-
-
 def consistent(scorer: Scorer, trial: Trial) -> bool:
     """Whether ``trial``'s shape agrees with its size within ``CONSISTENT_WITHIN``."""
     return _agreement(scorer, trial)[1] <= CONSISTENT_WITHIN
@@ -433,18 +396,3 @@ def _agreement(scorer: Scorer, trial: Trial) -> tuple[dict[str, float], float]:
     """The shape that agrees with ``trial``'s fitted size, and the largest factor
     between it and ``trial``'s (1: they agree; a filter always does)."""
     return agreement(trial.option, trial.theta[scorer.theta.size :])
-
-
-def agreement(option: Option, coefficients: FloatArray) -> tuple[dict[str, float], float]:
-    """The shape that agrees with ``option``'s fitted ``coefficients``, and the largest
-    factor between it and ``option``'s shape (1: they agree; a filter always does)."""
-    shape = dict(option.shape)
-    if option.is_filter:
-        return shape, 1.0
-    agreed = option.effect.consistent_shape(coefficients, shape)
-    factors = [
-        max(agreed[k] / shape[k], shape[k] / agreed[k]) if agreed[k] * shape[k] > 0 else
-        (1.0 if agreed[k] == shape[k] else np.inf)
-        for k in shape
-    ]  # fmt: skip
-    return agreed, max(factors, default=1.0)
