@@ -176,8 +176,8 @@ def select(
     chosen, history, last = list(was.chosen), list(was.heldout_rms_N), list(was.last_round)
     pool = [e for e in pool if e not in {o.effect for o in chosen}]
     baseline, level_from, first, levels = was.baseline, was.level_from, was.first_round, was.levels
-    gms_theta = was.gms_theta
-    parts, every = _gms_from(baseline, gms_theta)
+    gms_theta, placed = was.gms_theta, _placed(baseline)
+    parts, every = _gms_from(baseline, gms_theta, placed)
     level = (level_from or baseline).sliding_force_N
     while pool and len(chosen) < cfg.max_effects:
         scorer = Scorer(parts, chosen, every)
@@ -214,6 +214,7 @@ def select(
                 # Stribeck at another slip level: the selection goes on from that level
                 level_from = level_from or baseline
                 baseline, take = free.baseline, free.trial
+                placed = _placed(baseline)
                 last = [take if t.option.effect is fx.Stribeck else t for t in last]
         if take is None:
             break
@@ -221,19 +222,29 @@ def select(
         history.append(take.heldout_rms_N)
         pool.remove(take.option.effect)
         gms_theta = take.theta
-        parts, every = _gms_from(baseline, gms_theta)
+        parts, every = _gms_from(baseline, gms_theta, placed)
     return Selection(
         baseline, tuple(chosen), tuple(history), tuple(last), level_from, first, levels,
         gms_theta,
     )  # fmt: skip
 
 
+Placed = Callable[[], tuple[FittedPart, ...]]
+
+
+def _placed(baseline: Baseline) -> Placed | None:
+    """``baseline``'s parts along every sample (placed when first asked), if it is
+    fitted on every k-th sample; else None."""
+    full = baseline.prepared.every_sample
+    return None if full is None else functools.cache(lambda: placed_on(full, baseline).parts)
+
+
 def _gms_from(
-    baseline: Baseline, theta: FloatArray | None
-) -> tuple[tuple[FittedPart, ...], Callable[[], tuple[FittedPart, ...]] | None]:
+    baseline: Baseline, theta: FloatArray | None, placed: Placed | None
+) -> tuple[tuple[FittedPart, ...], Placed | None]:
     """``baseline``'s parts with the GMS force (and elements) of the coefficients
     ``theta`` (a joint fit with the effects kept; None: the baseline's own), and the
-    same along every sample (placed when first asked) where the parts are every k-th.
+    same along every sample (``placed``, its GMS force refitted when first asked).
     The effects that scale the GMS force scale the one fitted beside the kept effects:
     on pair_offset_stribeck-259 of the independent generator the baseline fitted alone
     absorbed an offset of 30 % of the level into its limits (its force 17.8 N off where
@@ -244,8 +255,7 @@ def _gms_from(
     def gms(parts: tuple[FittedPart, ...]) -> tuple[FittedPart, ...]:
         return parts if theta is None else refit_gms_force(parts, theta, basis)
 
-    full = baseline.prepared.every_sample
-    every = None if full is None else functools.cache(lambda: gms(placed_on(full, baseline).parts))
+    every = None if placed is None else functools.cache(lambda: gms(placed()))
     return gms(baseline.parts), every
 
 
