@@ -12,11 +12,13 @@ import pytest
 from gms_comp.measured.diagnosis.coverage import (
     NEAR_TIE,
     SPEED_OR_DIRECTION,
+    at_bound,
     caveats,
     near_tie,
     speed_bands,
     speed_direction_confound,
 )
+from gms_comp.runtime import effects as fx
 
 STILL = 1e-5  # m/s
 
@@ -118,3 +120,37 @@ def test_a_near_tie_is_a_caveat_only_about_the_first_effect_named() -> None:
     assert [c.kind for c in caveats(v, STILL, ["drift", "offset"], round1)] == ["near_tie"]
     assert caveats(v, STILL, ["offset", "drift"], round1) == ()
     assert caveats(v, STILL, [], round1) == ()
+
+
+def _context(v: np.ndarray, rate_Hz: float = 2000.0) -> fx.Context:
+    t = np.arange(v.size) / rate_Hz
+    x = np.cumsum(v) / rate_Hz
+    return fx.Context.along(t, x, v, np.gradient(v, t), 0 * t)
+
+
+def test_a_stribeck_speed_at_half_the_top_speed_is_at_its_bound() -> None:
+    # stribeck-251 of the independent generator: top speed 6.35 mm/s, the true fall's
+    # v_s 5.67 mm/s; the search stops at half the top speed
+    ctx = _context(profile((6.35e-3, 4000), (-1.07e-3, 20000)))
+    caveat = at_bound([fx.Stribeck(1.34, 0.5 * 6.35e-3)], ctx, 50e-6)
+    assert caveat is not None
+    assert caveat.kind == "at_bound" and caveat.effects == ("stribeck",)
+    assert "v_s_m_per_s at its upper bound" in caveat.text
+    # ... and only the effect at a bound is named
+    both = at_bound([fx.Viscous(10.0), fx.Stribeck(1.34, 0.5 * 6.35e-3)], ctx, 50e-6)
+    assert both is not None and both.effects == ("stribeck",)
+
+
+@pytest.mark.parametrize("v_s", [0.3e-3, 1.0e-3, 3.0e-3], ids=["slow", "mid", "just-inside"])
+def test_a_stribeck_speed_inside_its_range_is_no_caveat(v_s: float) -> None:
+    ctx = _context(profile((6.35e-3, 4000), (-1.07e-3, 20000)))
+    assert at_bound([fx.Stribeck(1.34, v_s)], ctx, 50e-6) is None
+
+
+def test_an_at_bound_caveat_is_listed_with_the_others_when_its_effect_is_named() -> None:
+    ctx = _context(profile((6.35e-3, 4000), (-1.07e-3, 20000)))
+    bounded = at_bound([fx.Stribeck(1.34, 0.5 * 6.35e-3)], ctx, 50e-6)
+    listed = caveats(ctx.velocity_m_s, STILL, ["stribeck"], bounded=bounded)
+    # one speed each way: the speed/direction confound as well
+    assert [c.kind for c in listed] == ["speed_direction", "at_bound"]
+    assert caveats(ctx.velocity_m_s, STILL, ["viscous"], bounded=bounded)[-1].kind != "at_bound"

@@ -22,6 +22,12 @@ the held-out RMS nearly as much (``NEAR_TIE``). Independent stribeck-223 moves f
 than 1.13 mm/s only in its first 2.9 s of 29 s; its Stribeck fall (v_s 5.75 mm/s) and a
 drift over the first second both took the baseline's 0.1704 N held out to 0.1551 N, and
 the drift was named.
+
+A kept effect's shape at the bound of its search is a caveat as well: the trace could
+not place it further (``AT_BOUND``). Independent stribeck-251 moves at 6.35 mm/s at the
+most and hides a fall with v_s 5.67 mm/s, still 28 % of its height at the top speed: v_s
+is held at half the top speed (the Stribeck bound) and the ratio fitted there is the fall
+within the trace's speeds, below the truth's.
 """
 
 from __future__ import annotations
@@ -33,6 +39,8 @@ from typing import Any
 import numpy as np
 
 from gms_comp.arrays import FloatArray
+from gms_comp.runtime import effects as fx
+from gms_comp.runtime.effects.path import Context
 
 # Speeds are binned by BAND_BIN_DECADES of log10; bins that hold at least BAND_SHARE of
 # a direction's moving time are its bands (adjacent held bins: one band).
@@ -43,6 +51,8 @@ BAND_SHARE = 0.02
 NARROW_BAND = 2.0
 # The effects a confound of speed and direction concerns.
 SPEED_OR_DIRECTION = ("viscous", "stribeck", "direction_asymmetry", "offset")
+# A shape parameter within this factor of a bound of its search is at it.
+AT_BOUND = 1.02
 # Another effect near the first one kept: it took at least this share of the first
 # effect's drop in held-out RMS in the round that kept it.
 NEAR_TIE = 0.9
@@ -131,13 +141,38 @@ def near_tie(first: str, design_rms_N: float, trials: Sequence[tuple[str, float]
     )
 
 
+def at_bound(effects: Sequence[fx.Effect], ctx: Context, presliding_m: float) -> Caveat | None:
+    """A caveat naming the ``effects`` with a shape parameter at a bound of its search
+    (within ``AT_BOUND``; the bounds on the path ``ctx``); None when none is."""
+    found = []
+    for effect in effects:
+        for key, (lo, hi) in effect.shape_bounds(ctx, presliding_m).items():
+            value = float(getattr(effect, key))
+            if value >= hi / AT_BOUND or value <= lo * AT_BOUND:
+                side = "upper" if value >= hi / AT_BOUND else "lower"
+                text = f"{effect.name}'s {key} at its {side} bound {value:.4g}"
+                found.append((effect.name, text))
+    if not found:
+        return None
+    return Caveat(
+        "at_bound",
+        tuple(dict.fromkeys(name for name, _ in found)),
+        f"{'; '.join(text for _, text in found)}: the trace does not place it further "
+        f"(a Stribeck speed at half the top speed: the fall may go on above the trace's "
+        f"speeds, and its ratio is the fall within them), and the other parameters are "
+        f"fitted with it held there",
+    )
+
+
 def caveats(
     velocity_m_s: FloatArray, standstill_m_s: float, named: Sequence[str],
     first_round: tuple[float, Sequence[tuple[str, float]]] = (0.0, ()),
+    bounded: Caveat | None = None,
 ) -> tuple[Caveat, ...]:  # fmt: skip
     """The caveats that concern any of the ``named`` effects; ``first_round``: the
-    selection's first design held-out RMS and its admissible trials (:func:`near_tie`)."""
-    found = [speed_direction_confound(velocity_m_s, standstill_m_s)]
+    selection's first design held-out RMS and its admissible trials (:func:`near_tie`);
+    ``bounded``: :func:`at_bound`'s."""
+    found = [speed_direction_confound(velocity_m_s, standstill_m_s), bounded]
     if named:
         found.append(near_tie(named[0], *first_round))
     return tuple(c for c in found if c is not None and set(c.effects) & set(named))

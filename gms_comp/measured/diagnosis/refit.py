@@ -14,6 +14,7 @@ a kept drift's tau, is then searched together with the slip level it trades agai
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -50,7 +51,11 @@ from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
 from gms_comp.measured.diagnosis.gain import lowers
 from gms_comp.measured.diagnosis.selection import DISCRETE, Selection, admissible, local_search
 from gms_comp.measured.diagnosis.sensed import sensed_again
-from gms_comp.measured.diagnosis.slip_level import SLIP_LEVEL_RANGE, transition_range
+from gms_comp.measured.diagnosis.slip_level import (
+    REFIT_TAILS,
+    SLIP_LEVEL_RANGE,
+    transition_range,
+)
 from gms_comp.runtime import effects as fx
 
 JOINT_REFITS = 3
@@ -83,6 +88,7 @@ WHOLE_ROWS = (fx.DwellTime,)
 # Searched with the level: 0.276 over 9.92 s.
 JOINT_LEVEL_STEPS = (0.05, float(np.log(2.0)), float(np.log(1.3)))
 JOINT_LEVEL_EVALS = 60
+JOINT_GRID_STEPS = (0.05, float(np.log(1.6)), float(np.log(1.5)))
 # Searched in this order of preference; each has one shape parameter (its SHAPE).
 LEVEL_TRADED: tuple[type[fx.Effect], ...] = (fx.Stribeck, fx.Drift)
 
@@ -218,9 +224,10 @@ def _level_with_shape(
 ) -> tuple[FreeBasis, list[Option]] | None:
     """A kept ``LEVEL_TRADED`` effect's shape (a Stribeck fall's v_s, else a drift's
     tau) searched together with the free basis's slip level (C_v and v_t; see
-    ``JOINT_LEVEL_EVALS``), each trial costed by the training RMS once the GMS force is
-    updated ``JOINT_REFITS`` times; None when no such effect is kept, the basis is a
-    table's, or the search found nothing better."""
+    ``JOINT_LEVEL_EVALS``) on each of the level's tails (slip_level.REFIT_TAILS, the
+    basis's first), each trial costed by the training RMS once the GMS force is updated
+    ``JOINT_REFITS`` times; None when no such effect is kept, the basis is a table's, or
+    the search found nothing better."""
     at = next((k for e in LEVEL_TRADED for k, o in enumerate(chosen) if o.effect is e), None)
     if at is None or not isinstance(basis, FreeBasis):
         return None
@@ -233,15 +240,16 @@ def _level_with_shape(
         for lo, hi in (transition_range(vmax, np.inf), ranges[key])
     )]  # fmt: skip
 
-    def unpack(u: FloatArray) -> tuple[FreeBasis, list[Option]]:
+    def unpack(u: FloatArray, tail: float) -> tuple[FreeBasis, list[Option]]:
         level = dataclasses.replace(
-            basis, slip_level=float(u[0]), transition_velocity_m_s=float(np.exp(u[1]))
-        )
+            basis, slip_level=float(u[0]), transition_velocity_m_s=float(np.exp(u[1])),
+            transition_tail=tail,
+        )  # fmt: skip
         traded = chosen[at].with_value(key, float(np.exp(u[2])))
         return level, [*chosen[:at], traded, *chosen[at + 1 :]]
 
-    def cost(u: FloatArray) -> float:
-        level, options = unpack(u)
+    def cost(u: FloatArray, tail: float) -> float:
+        level, options = unpack(u, tail)
         parts, gram = rebased_gram(baseline, level)
         # without a filter the base columns' Gram matrix is the one the rebase fitted
         base = base_gram(parts, options) if any(o.is_filter for o in options) else gram
@@ -257,17 +265,26 @@ def _level_with_shape(
     ])  # fmt: skip
     lo, hi = np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
     u0 = np.clip(u0, lo, hi)
-    # each first step away from the nearer bound (clipped at it, the simplex would be flat)
-    steps = np.asarray(JOINT_LEVEL_STEPS)
-    steps = np.where(u0 + steps <= hi, steps, -steps)
-    simplex = np.clip(u0 + np.vstack([np.zeros(3), np.diag(steps)]), lo, hi)
-    start = cost(u0)
-    found = optimize.minimize(
-        cost, u0, method="Nelder-Mead", bounds=bounds,
-        options={"maxfev": JOINT_LEVEL_EVALS, "initial_simplex": simplex, "xatol": 0.01,
-                 "fatol": 1e-4 * start},
-    )  # fmt: skip
-    return unpack(found.x) if found.fun < start else None
+    start = cost(u0, basis.transition_tail)
+    best: tuple[float, FloatArray, float] | None = None
+    for tail in sorted(REFIT_TAILS, key=lambda t: t != basis.transition_tail):
+        # from the best of a grid around the start (the level's valley in (C_v, v_t) is
+        # narrow and curved: from the start alone the simplex stalls on it)
+        grid = np.clip(u0 + np.array(list(itertools.product(*(
+            (-d, 0.0, d) for d in JOINT_GRID_STEPS)))), lo, hi)  # fmt: skip
+        u = min(grid, key=lambda g: cost(g, tail))
+        # each first step away from the nearer bound (clipped at it, the simplex is flat)
+        steps = np.asarray(JOINT_LEVEL_STEPS)
+        steps = np.where(u + steps <= hi, steps, -steps)
+        simplex = np.clip(u + np.vstack([np.zeros(3), np.diag(steps)]), lo, hi)
+        found = optimize.minimize(
+            cost, u, args=(tail,), method="Nelder-Mead", bounds=bounds,
+            options={"maxfev": JOINT_LEVEL_EVALS, "initial_simplex": simplex, "xatol": 0.01,
+                     "fatol": 1e-4 * start},
+        )  # fmt: skip
+        if found.fun < (start if best is None else best[0]):
+            best = (float(found.fun), found.x, tail)
+    return None if best is None else unpack(best[1], best[2])
 
 
 def _placed_again(

@@ -32,7 +32,7 @@ from gms_comp.gms import GmsParams
 from gms_comp.measured.diagnosis.baseline import Baseline, fit_baseline, held_residual, placed_on
 from gms_comp.measured.diagnosis.candidates import Scorer, describe_trials
 from gms_comp.measured.diagnosis.config import DiagnosisConfig, load_diagnosis_config
-from gms_comp.measured.diagnosis.coverage import caveats
+from gms_comp.measured.diagnosis.coverage import at_bound, caveats
 from gms_comp.measured.diagnosis.design import rms
 from gms_comp.measured.diagnosis.gain import lowers
 from gms_comp.measured.diagnosis.phases import phase_masks, residual_by_phase
@@ -177,6 +177,7 @@ def _diagnose(
     named = [c.effect.name for c in extended.ranked]
     design_rms, first = selection.first_round
     near = design_rms, [(t.option.effect.name, t.heldout_rms_N) for t in first]
+    bounded = at_bound([c.effect for c in extended.ranked], main.ctx, judged.presliding_m)
     return Diagnosis(
         effect=verdict(extended.ranked, structure),
         ranked=extended.ranked,
@@ -194,5 +195,7 @@ def _diagnose(
         # the table's keys are Prepared's fields of the same names
         extension_context={key: getattr(prepared, key) for key in EXTENSION_CONTEXT_KEYS},
         in_context=tuple(c.effect.in_context(main.ctx) for c in extended.ranked),
-        caveats=caveats(main.part.kin.velocity_m_s, prepared.standstill_speed_m_s, named, near),
+        caveats=caveats(
+            main.part.kin.velocity_m_s, prepared.standstill_speed_m_s, named, near, bounded
+        ),
     )

@@ -216,6 +216,9 @@ def select(
                 baseline, take = free.baseline, free.trial
                 placed = _placed(baseline)
                 last = [take if t.option.effect is fx.Stribeck else t for t in last]
+                if not chosen:  # the first round's near tie is judged against it
+                    others = (t for t in first[1] if t.option.effect is not fx.Stribeck)
+                    first = (first[0], (*others, take))
         if take is None:
             break
         chosen.append(take.option)
