@@ -211,12 +211,17 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
     level = doc.get("extended_slip_level", b["slip_level"])
     base_law = b.get("limit_follows_level", False)
     law = doc.get("extended_limit_follows_level", base_law)
-    if doc["effects"] and (abs(level - b["slip_level"]) > 0.005 or law != base_law):
+    tail = doc.get("extended_transition_tail", b.get("transition_tail"))
+    moved = abs(level - b["slip_level"]) > 0.005 or law != base_law
+    if doc["effects"] and (moved or tail != b.get("transition_tail")):
         follows = (
             f", its stick limit {'following' if law else 'not following'} it"
             if law != base_law
             else ""
         )
+        if tail != b.get("transition_tail"):
+            approach = "exponential" if tail is None else f"rational (tail {tail:g})"
+            follows += f", reached on the {approach} approach"
         lines.append(
             f"  with the slip level C_v {level:.3g}{follows} (the GMS alone: {b['slip_level']:.3g})"
         )

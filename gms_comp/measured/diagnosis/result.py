@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -73,6 +74,11 @@ class Diagnosis:
             "extended_rms_N": self.extended_rms_N,
             "extended_slip_level": float(self.gms.slip_level),
             "extended_limit_follows_level": self.gms.limit_follows_level,
+            "extended_transition_velocity_m_s": float(self.gms.transition_velocity_m_s),
+            "extended_transition_exponent": float(self.gms.transition_exponent),
+            "extended_transition_tail": (
+                None if math.isinf(tail := self.gms.transition_tail) else float(tail)
+            ),
             "gain": self.gain,
             "noise_rms_N": self.noise_rms_N,
             "baseline": self.baseline,
