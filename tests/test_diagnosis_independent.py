@@ -290,6 +290,21 @@ def test_a_stribeck_fall_after_an_offset_is_ranked_second(trace_dir: Path) -> No
     assert error <= TOLERANCE["stribeck"], _describe(gen, outcome)
 
 
+def test_a_term_dropped_under_the_floor_gives_its_share_back_to_the_level(
+    trace_dir: Path,
+) -> None:
+    # pair_drift_offset-251 (kappa 0.30 over 11.6 s, a 2.44 N offset on a 41 N level, C_v
+    # 1.256 reached on the rational approach over 0.33 mm/s): a viscous term kept fourth
+    # carried the approach's slow rise, 0.68 N at most, under the floor; dropped without
+    # searching the level again, drift > offset held out 0.653 N (noise 0.622 N) and a 3 %
+    # Stribeck fall at 0.06 mm/s, bent into the onset, was kept third
+    gen, outcome = diagnosed("pair_drift_offset", 251, trace_dir)
+    assert outcome.ranked == ["drift", "offset"], _describe(gen, outcome)
+    error = main_parameter_error(gen, outcome)
+    assert error is not None and error <= TOLERANCE["drift"], _describe(gen, outcome)
+    assert outcome.result["extended_rms_N"] < 1.03 * outcome.result["noise_rms_N"]
+
+
 def test_a_transient_beside_a_drift_is_not_left_as_a_spot(trace_dir: Path) -> None:
     # pair_drift_reversal_transient-209 (kappa -0.30 over 16 s, a 1.28 N transient over
     # 0.12 mm): at 5da264b the transient came out 0 mm long and a spot it left (+0.58 N
