@@ -53,32 +53,35 @@ LEVEL_TRADED: tuple[type[fx.Effect], ...] = (fx.Stribeck, fx.Drift)
 
 
 def level_with_shape(
-    baseline: Baseline, basis: Basis, chosen: list[Option], refits: int
+    baseline: Baseline, basis: Basis, chosen: list[Option], refits: int, alone: bool = False
 ) -> tuple[FreeBasis, list[Option]] | None:
     """A kept ``LEVEL_TRADED`` effect's shape (a Stribeck fall's v_s, else a drift's
     tau) searched together with the free basis's slip level (C_v and v_t; see
     ``JOINT_LEVEL_EVALS``) on each of the level's tails (slip_level.REFIT_TAILS, the
     basis's first), each trial costed by the training RMS once the GMS force is updated
     ``refits`` times; of the tails' best points that train better than the start, the one
-    that holds out best; None when no such effect is kept, the basis is a table's, or the
-    search found nothing better."""
+    that holds out best; None when no such effect is kept (unless ``alone``: then the
+    level alone is searched), the basis is a table's, or the search found nothing better."""
     at = next((k for e in LEVEL_TRADED for k, o in enumerate(chosen) if o.effect is e), None)
-    if at is None or not isinstance(basis, FreeBasis):
+    if (at is None and not alone) or not isinstance(basis, FreeBasis):
         return None
-    effect = chosen[at].effect
-    (key,) = effect.SHAPE
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in baseline.prepared.parts)
-    ranges = effect.shape_bounds(baseline.parts[0].ctx, baseline.presliding_m)
-    bounds = [SLIP_LEVEL_RANGE, *(
-        (float(np.log(lo)), float(np.log(hi)))
-        for lo, hi in (transition_range(vmax, np.inf), ranges[key])
-    )]  # fmt: skip
+    ranges = [transition_range(vmax, np.inf)]
+    key = ""
+    if at is not None:
+        effect = chosen[at].effect
+        (key,) = effect.SHAPE
+        ranges.append(effect.shape_bounds(baseline.parts[0].ctx, baseline.presliding_m)[key])
+    bounds = [SLIP_LEVEL_RANGE, *((float(np.log(lo)), float(np.log(hi))) for lo, hi in ranges)]
+    dims = len(bounds)
 
     def unpack(u: FloatArray, tail: float) -> tuple[FreeBasis, list[Option]]:
         level = dataclasses.replace(
             basis, slip_level=float(u[0]), transition_velocity_m_s=float(np.exp(u[1])),
             transition_tail=tail,
         )  # fmt: skip
+        if at is None:
+            return level, list(chosen)
         traded = chosen[at].with_value(key, float(np.exp(u[2])))
         return level, [*chosen[:at], traded, *chosen[at + 1 :]]
 
@@ -102,10 +105,8 @@ def level_with_shape(
         parts, options, theta, _ = fitted(u, tail)
         return rms(GramDesign(design(parts, options)).held_residual(theta))
 
-    u0 = np.array([
-        basis.slip_level, np.log(basis.transition_velocity_m_s),
-        np.log(chosen[at].shape[key]),
-    ])  # fmt: skip
+    u0 = np.array([basis.slip_level, np.log(basis.transition_velocity_m_s)] + (
+        [] if at is None else [np.log(chosen[at].shape[key])]))  # fmt: skip
     lo, hi = np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
     u0 = np.clip(u0, lo, hi)
     start = cost(u0, basis.transition_tail)
@@ -114,12 +115,12 @@ def level_with_shape(
         # from the best of a grid around the start (the level's valley in (C_v, v_t) is
         # narrow and curved: from the start alone the simplex stalls on it)
         grid = np.clip(u0 + np.array(list(itertools.product(*(
-            (-d, 0.0, d) for d in JOINT_GRID_STEPS)))), lo, hi)  # fmt: skip
+            (-d, 0.0, d) for d in JOINT_GRID_STEPS[:dims])))), lo, hi)  # fmt: skip
         u = min(grid, key=lambda g: cost(g, tail))
         # each first step away from the nearer bound (clipped at it, the simplex is flat)
-        steps = np.asarray(JOINT_LEVEL_STEPS)
+        steps = np.asarray(JOINT_LEVEL_STEPS[:dims])
         steps = np.where(u + steps <= hi, steps, -steps)
-        simplex = np.clip(u + np.vstack([np.zeros(3), np.diag(steps)]), lo, hi)
+        simplex = np.clip(u + np.vstack([np.zeros(dims), np.diag(steps)]), lo, hi)
         result = optimize.minimize(
             cost, u, args=(tail,), method="Nelder-Mead", bounds=bounds,
             options={"maxfev": JOINT_LEVEL_EVALS, "initial_simplex": simplex, "xatol": 0.01,

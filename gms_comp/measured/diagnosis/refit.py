@@ -102,7 +102,12 @@ def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
     level is judged the same way: it may carry what the level and the first effect's
     shape, searched together in the refit, carry better (six traces of the independent
     seeds 111-130 without a Stribeck, drift-114/-120 among them, kept one second or
-    third; none of them does now, and pair_offset_stribeck-121/-123 keep theirs)."""
+    third; none of them does now, and pair_offset_stribeck-121/-123 keep theirs).
+    The model without it has its level searched as far as the one with it (on both
+    tails, from a grid), with no shape to search beside it: on reversal_transient-271
+    (C_v 1.056; a 0.45 N transient over 0.27 mm on a 3.1 N level, noise 0.030 N) the
+    level's coordinate steps left the transient alone at 0.0355 N held out and a 5 %
+    Stribeck at 3.1 mm/s was kept beside it (0.0345 N); searched, C_v 1.055 and 0.0345 N."""
     extended = refit_kept(selection, cfg)
     later = fx.Stribeck in [o.effect for o in selection.chosen[1:]]
     if selection.level_from is None and not later:
@@ -117,13 +122,16 @@ def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
     without = refit_kept(
         Selection(start, tuple(o for o, _ in rest), tuple(h for _, h in rest),
                   selection.last_round),
-        cfg, placed,
+        cfg, placed, alone=True,
     )  # fmt: skip
     return extended if lowers(cfg, without.held_residual_N, extended.held_residual_N) else without
 
 
 def refit_kept(
-    selection: Selection, cfg: DiagnosisConfig, placed: Baseline | None = None
+    selection: Selection,
+    cfg: DiagnosisConfig,
+    placed: Baseline | None = None,
+    alone: bool = False,
 ) -> Extended:
     """All coefficients fitted jointly with every kept effect present; the extended
     model (GMS kernel, then the effects) simulated along every part.
@@ -144,7 +152,7 @@ def refit_kept(
         chosen, history = _prune(parts, chosen, history, cfg, baseline.sliding_force_N)
     theta = GramDesign(design(parts, chosen)).fit()
     parts, chosen, theta = _joint_refits(parts, basis, chosen, theta, baseline.presliding_m)
-    basis, parts, chosen, theta = _with_level(baseline, basis, parts, chosen, theta)
+    basis, parts, chosen, theta = _with_level(baseline, basis, parts, chosen, theta, alone)
     forces = _added_forces(parts, chosen, theta)
     kept = _floored(chosen, forces, cfg.min_effect_fraction * baseline.sliding_force_N)
     if len(kept) < len(chosen):
@@ -156,7 +164,7 @@ def refit_kept(
         # floor, 0.68 N on a 41 N level, carried the rational onset's slow rise: dropped,
         # the drift and offset held out 0.653 N for 0.626 N, noise 0.622 N, and a
         # Stribeck fall of 3 % at 0.06 mm/s beat them)
-        basis, parts, chosen, theta = _with_level(baseline, basis, parts, chosen, theta)
+        basis, parts, chosen, theta = _with_level(baseline, basis, parts, chosen, theta, alone)
         forces = _added_forces(parts, chosen, theta)
     if len(chosen) > 1:
         order, history = _rank(parts, chosen, forces)
@@ -181,12 +189,12 @@ def refit_kept(
 
 def _with_level(
     baseline: Baseline, basis: Basis, parts: tuple[FittedPart, ...], chosen: list[Option],
-    theta: FloatArray,
+    theta: FloatArray, alone: bool = False,
 ) -> tuple[Basis, tuple[FittedPart, ...], list[Option], FloatArray]:  # fmt: skip
     """The slip level searched with the shape it trades against (:mod:`.level_search`)
     and everything refitted on it (:func:`_joint_refits`), if the search found a better
     level; else the arguments as given."""
-    joint = level_with_shape(baseline, basis, chosen, JOINT_REFITS)
+    joint = level_with_shape(baseline, basis, chosen, JOINT_REFITS, alone)
     if joint is None:
         return basis, parts, chosen, theta
     basis, chosen = joint
