@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gms_comp.arrays import FloatArray
-from gms_comp.gms import GmsParams, simulate
+from gms_comp.gms import GmsParams
 from gms_comp.measured.diagnosis.agreement import agreed
 from gms_comp.measured.diagnosis.baseline import (
     Baseline,
@@ -46,7 +46,7 @@ from gms_comp.measured.diagnosis.candidates import (
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
 from gms_comp.measured.diagnosis.gain import lowers
-from gms_comp.measured.diagnosis.level_search import level_with_shape
+from gms_comp.measured.diagnosis.level_search import extended_force, level_with_shape
 from gms_comp.measured.diagnosis.selection import DISCRETE, Selection, admissible, local_search
 from gms_comp.measured.diagnosis.sensed import sensed_again
 from gms_comp.runtime import effects as fx
@@ -375,9 +375,3 @@ def _refine_shape(
         first, lambda t: settled(t)[2], first_cost, bounds, opt.effect.SET_BY_SIZE, steps
     )
     return settled(best[0])[0]
-
-
-def extended_force(fp: FittedPart, gms: GmsParams, extensions: Sequence[fx.Effect]) -> FloatArray:
-    """The extended model (``gms``, then ``extensions``) simulated along ``fp``."""
-    force = simulate(gms, fp.part.kin.position_m, fp.part.kin.velocity_m_s)[0]
-    return fx.apply_extensions(extensions, dataclasses.replace(fp.ctx, gms_force_N=force, gms=gms))
