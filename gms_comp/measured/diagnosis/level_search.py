@@ -147,14 +147,23 @@ def run_held_out(
     the catalogue) the rational tail's level at C_v 1.96 with a Stribeck of ratio 2.2 held
     out 0.240 N in the design and 0.379 N run (the exponential's, at C_v 1.40: 0.274 N
     and 0.281 N)."""
+    gms, extensions = extended_model(baseline, basis, parts, chosen, theta)
+    return rms(held_residual(parts, [extended_force(fp, gms, extensions) for fp in parts]))
+
+
+def extended_model(
+    baseline: Baseline, basis: Basis, parts: Sequence[FittedPart], chosen: Sequence[Option],
+    theta: FloatArray,
+) -> tuple[GmsParams, list[fx.Effect]]:  # fmt: skip
+    """The GMS and the effects of coefficients ``theta`` on ``basis``: ``chosen``'s, in
+    its order, then a drive force's inertia."""
     n = baseline.n_gms
     w = widths(parts, chosen)
     base_width = parts[0].base.values.shape[1]
     extensions = [effect_of(o, chosen, theta, base_width, w) for o in chosen]
     if baseline.prepared.drive:
         extensions.append(fx.Inertia(float(theta[n])))
-    gms = basis.gms(theta[:n])
-    return rms(held_residual(parts, [extended_force(fp, gms, extensions) for fp in parts]))
+    return basis.gms(theta[:n]), extensions
 
 
 def extended_force(fp: FittedPart, gms: GmsParams, extensions: Sequence[fx.Effect]) -> FloatArray:

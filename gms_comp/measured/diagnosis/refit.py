@@ -39,14 +39,17 @@ from gms_comp.measured.diagnosis.candidates import (
     Scorer,
     base_gram,
     design,
-    effect_of,
     fit_on,
     widths,
 )
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
 from gms_comp.measured.diagnosis.gain import lowers
-from gms_comp.measured.diagnosis.level_search import extended_force, level_with_shape
+from gms_comp.measured.diagnosis.level_search import (
+    extended_force,
+    extended_model,
+    level_with_shape,
+)
 from gms_comp.measured.diagnosis.selection import DISCRETE, Selection, admissible, local_search
 from gms_comp.measured.diagnosis.sensed import sensed_again
 from gms_comp.runtime import effects as fx
@@ -171,17 +174,8 @@ def refit_kept(
         if order != chosen:
             chosen = order
             theta = GramDesign(design(parts, chosen)).fit()
-    n = baseline.n_gms
-    base_width = parts[0].base.values.shape[1]
-    w = widths(parts, chosen)
-    ranked = tuple(
-        Ranked(effect_of(o, chosen, theta, base_width, w), h)
-        for o, h in zip(chosen, history, strict=True)
-    )
-    gms = basis.gms(theta[:n])
-    extensions = [r.effect for r in ranked]
-    if baseline.prepared.drive:
-        extensions.append(fx.Inertia(float(theta[n])))
+    gms, extensions = extended_model(baseline, basis, parts, chosen, theta)
+    ranked = tuple(Ranked(e, h) for e, h in zip(extensions[: len(chosen)], history, strict=True))
     predictions = tuple(extended_force(fp, gms, extensions) for fp in parts)
     held = held_residual(parts, predictions)
     return Extended(baseline, ranked, gms, tuple(extensions), predictions, rms(held), held, placed)
