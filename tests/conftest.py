@@ -1,7 +1,7 @@
 """Shared test set-up: the ``slow`` marker on long tests, and a copy of the checkout.
 
 ``python -m pytest -q -n auto`` (the README's command, what .ci/run calls) runs every test,
-on every core (pytest-xdist; tests marked ``xdist_group`` share a worker);
+on every core (pytest-xdist, one test file per worker);
 ``python -m pytest -q -m "not slow"`` skips those marked ``slow`` (over ~20 s each on a
 loaded 2-core machine) for a quicker local run. Tests in this project's own helper
 files carry ``@pytest.mark.slow``; the long tests listed in :data:`SLOW` are marked

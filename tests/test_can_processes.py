@@ -25,9 +25,6 @@ from firmware_bridge.settings import CanConfig
 from gms_comp.app.cli import main
 from gms_comp.config import default_config_path
 
-# One worker runs this module under pytest-xdist: its buses share one group and port.
-pytestmark = pytest.mark.xdist_group("udp_multicast")
-
 GROUP = "ff11::4743:4d53"
 PORT = 43113  # python-can's default: the CLI has no port option
 

@@ -47,30 +47,19 @@ KNOWN_PARAMETER_MISSES: dict[tuple[str, int], str] = {}
 def grid(
     cases: list[str] | tuple[str, ...], misses: dict[tuple[str, int], str] = KNOWN_MISSES
 ) -> list[object]:
-    """``(case, seed)`` parameters, the known ``misses`` marked strict xfail; under
-    pytest-xdist, the tests of one trace run on one worker (it is diagnosed once there)."""
+    """``(case, seed)`` parameters, the known ``misses`` marked strict xfail."""
     return [
         pytest.param(
             case,
             seed,
             id=f"{case}-{seed}",
-            marks=[
-                pytest.mark.xdist_group(f"{case}-{seed}"),
-                *(
-                    [pytest.mark.xfail(strict=True, reason=misses[case, seed])]
-                    if (case, seed) in misses
-                    else []
-                ),
-            ],
+            marks=[pytest.mark.xfail(strict=True, reason=misses[case, seed])]
+            if (case, seed) in misses
+            else [],
         )
         for case in cases
         for seed in SEEDS
     ]
-
-
-def seeds_of(case: str) -> list[object]:
-    """``SEEDS`` as parameters of tests of ``case``, on the worker that diagnoses it (grid)."""
-    return [pytest.param(seed, marks=pytest.mark.xdist_group(f"{case}-{seed}")) for seed in SEEDS]
 
 
 @pytest.fixture(scope="session")
@@ -135,7 +124,7 @@ def test_two_effects_are_ranked_larger_first(case: str, seed: int, trace_dir: Pa
     assert pair_in_order(gen, outcome), _describe(gen, outcome)
 
 
-@pytest.mark.parametrize("seed", seeds_of("dwell_time"))
+@pytest.mark.parametrize("seed", SEEDS)
 def test_dwell_windows_are_computed_at_the_fitted_gain(seed: int, trace_dir: Path) -> None:
     # the raised limits' windows are those of the gain reported (the shape agrees with
     # the size, within the fixed point's 10 %), not of a gain the search passed through
@@ -147,7 +136,7 @@ def test_dwell_windows_are_computed_at_the_fitted_gain(seed: int, trace_dir: Pat
     assert 1 / 1.1 <= ratio <= 1.1, _describe(gen, outcome)
 
 
-@pytest.mark.parametrize("seed", seeds_of("dwell_time"))
+@pytest.mark.parametrize("seed", SEEDS)
 def test_a_dwell_gain_is_reported_after_the_trace_s_median_standstill(
     seed: int, trace_dir: Path
 ) -> None:

@@ -22,8 +22,6 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-# One worker runs this module under pytest-xdist: its venv and wheel are built once.
-pytestmark = pytest.mark.xdist_group("wheel")
 TIMEOUT_S = 600
 
 
