@@ -35,9 +35,10 @@ from gms_comp.measured.diagnosis.config import DiagnosisConfig, load_diagnosis_c
 from gms_comp.measured.diagnosis.coverage import at_bound, caveats
 from gms_comp.measured.diagnosis.design import rms
 from gms_comp.measured.diagnosis.gain import lowers
+from gms_comp.measured.diagnosis.level_search import extended_force
 from gms_comp.measured.diagnosis.phases import phase_masks, residual_by_phase
 from gms_comp.measured.diagnosis.prepare import Prepared, encoder_force_ratio, prepare
-from gms_comp.measured.diagnosis.refit import Extended, extended_force, refit
+from gms_comp.measured.diagnosis.refit import Extended, refit
 from gms_comp.measured.diagnosis.result import Diagnosis, verdict
 from gms_comp.measured.diagnosis.selection import Selection, select
 from gms_comp.measured.diagnosis.structure import residual_structure
