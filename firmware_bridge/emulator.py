@@ -132,7 +132,7 @@ class DriveEmulator:
             "state": self.side.state(),
             "frames_applied": self.frames_applied,
             "frames_rejected": counts.rejected,
-            "frames_resync": counts.counts[Verdict.RESYNC],
+            "sessions_granted": counts.counts[Verdict.GRANTED],
             "applied_current_A": self.applied_current_A,
             "max_applied_current_A": self.max_applied_current_A,
             "emcy": self.side.emcy(),

@@ -1,67 +1,78 @@
-"""When a received frame counts as stale: the one definition of the drive side and the audit.
+"""When a frame may be applied: the drive's cycle as the one clock, sessions as the one claim.
 
-Every feedforward frame carries an 8-bit alive counter: the compensator's
-control-cycle index modulo 256 (e2e: the DBC's ``Counter`` signal; cia402: the
-object 0x2001 mapped into RPDO1 beside 0x60B2). The drive dates a frame by that
-counter against its own cycle count: the first frame ever sets the
-correspondence (the *anchor*), and a frame's **age** is how many drive cycles
-it arrives after the cycle its counter belongs to.
+A frame is dated by the **drive's own cycle**, which the drive publishes with every
+status frame (e2e: ``DriveStatus.Cycle``; cia402: object 0x2002 in its TPDO at each
+SYNC, the drive cycle being its count of SYNCs). The compensator never invents a
+date: it stamps each feedforward frame with the drive cycle at which the frame is
+meant to be applied, computed from the last cycle the drive published plus the
+cycles it has *seen pass since* (cia402: the SYNCs after that TPDO; e2e: whole periods
+of its own clock since it handled that status frame, at most
+``horizon_cycles``) plus one (:class:`DriveTime`). Both terms can only lag
+the truth: a published cycle is already over when it arrives, and a delay of the
+status frame, of the SYNC or of the feedforward frame itself only makes the frame
+look *older* to the drive. So no delay, however long or steady, can make a late frame
+look fresh, and there is nothing to re-anchor (the receiver keeps no correspondence
+between its clock and the sender's).
 
-The rule, shared by :class:`FrameClock`, ``firmware_bridge/c/ff_handler.c``
-and the stream audit (:func:`firmware_bridge.streamer.count_unsent_applied`):
+The rule, shared by :class:`DriveClock` (both emulated drives),
+``firmware_bridge/c/ff_handler.c`` (the firmware) and, by time, the stream audit
+(:func:`firmware_bridge.streamer.count_unsent_applied`):
 
-    a frame is fresh if ``age <= max_age_cycles`` (boundary **included**),
-    compared through :func:`is_fresh` with a tolerance of
-    :data:`AGE_TOLERANCE_CYCLES` for ages measured in float time.
+    a frame stamped ``s`` is fresh at drive cycle ``n`` if
+    ``0 <= n - s <= max_age_cycles`` (modulo 2**16; boundary **included**).
 
-Besides, a frame must be newer than the last one applied (else it is a
-duplicate or out of order) while that one is itself fresh. A frame that
-arrives early (negative age) shows the anchor was set by a late
-frame: the anchor moves to it, so ages only ever get stricter. The anchor
-outlives a lost link (compensator and drive keep counting cycles), so the first
-frame after an outage is judged like any other. Only a steady run of
-:data:`REANCHOR_FRAMES` consecutive frames that are all late by the same amount
-(a restarted compensator, a drifted clock) re-anchors, without applying them.
+``n - s < 0`` is a frame dated in the drive's future: a sender whose clock runs fast,
+refused as ``early``. A command must also be newer than the last one taken in its
+session (else ``duplicate`` or ``out_of_order``).
 
-The counter dates a frame by the cycle it was made for, in whole drive cycles;
-it cannot see a frame held up in the sender after its cycle began (a
-compensator descheduled between sending the RPDO and the SYNC that applies it),
-nor where in a drive cycle the compensator's cycle began (a frame held up for
-3.008 cycles still counts 3). So a receiver that runs on time also dates each
-frame by time and, at the moment it would apply it, refuses a frame whose
-:func:`age_by_time` exceeds the window: the audit's own rule and
-:func:`transport_cycles`, with the send end replaced by the earliest time the
-frame can have been sent, which comes no later: its **slot**, the reception
-stamp (a controller's hardware receive timestamp; python-can's
-``msg.timestamp``) of the earliest frame received so far (relative to its
-counter), advanced one period per counter step (:meth:`FrameClock.sent_by`). A
-frame must pass both rules. The slot moves only earlier (each frame received
-before its slot moves it) and is set again with the anchor. A drive on its own
-clock takes it :data:`SLOT_MARGIN_CYCLES` earlier still (:func:`slot_margin_cycles`):
-a held-up frame may have left earlier in its cycle than any frame seen so far,
-which neither its counter nor its reception shows. With the drive applying at
-its next tick, this rule is the counter's less the phase of the slot in the
-drive's cycle plus the margin: it refuses a frame of counter age equal to the
-window exactly when the compensator's cycles begin within the margin after the
-drive's ticks, where the counter cannot tell one cycle from the next.
+**Sessions.** The drive holds at most one session: the 8-bit id of the compensator it
+takes commands from, announced in every status frame (0: none). A compensator asks
+for one with *request* frames (no current, a random id, stamped like any frame); the
+drive grants the first fresh request while it holds none. Commands of any other
+session are refused as ``foreign`` and never applied. The session ends with the
+compensator's *release* frame (a clean stop) or when the link is lost (no fresh
+command for ``rx_timeout``): the output ramps to zero and the compensator must ask
+again. That is the one way back after an outage, a restart or a second compensator:
+an explicit request, granted by the drive, never frames that merely keep coming.
+
+Wrap-around: stamps are 16-bit, so a frame held up for 65 536 cycles (65.5 s at
+1 kHz) plus or minus the window would date like a fresh one; the link is lost, and
+the session with it, after ``rx_timeout``, so such a frame would also need a request
+of the same random session id granted just before it: documented, not guarded.
 """
 
 from __future__ import annotations
 
+import enum
+import math
 from dataclasses import dataclass
 
-from firmware_bridge.supervisor import RejectCounts, Verdict
+from firmware_bridge.supervisor import Verdict
 
-COUNTER_MODULUS = 256
+STAMP_MODULUS = 1 << 16
+"""Stamps and drive cycles count modulo this (16 bits on the wire)."""
+SESSION_IDS = range(1, 256)
+"""Session ids a compensator may draw; 0 means "no session"."""
 AGE_TOLERANCE_CYCLES = 1e-6
 """Slack on the boundary for ages computed from float times, in cycles (1 ns at 1 ms)."""
-MAX_EARLY_CYCLES = COUNTER_MODULUS // 4
-"""A frame further ahead of the anchor than this is taken as an old one, wrapped around."""
-_AGE_CAP = 2**30
-REANCHOR_FRAMES = 16
-"""Consecutive frames late by the same amount that re-establish the anchor."""
-SLOT_MARGIN_CYCLES = 0.25
-"""How much earlier in its cycle than any frame seen so far a real-time sender may send."""
+
+
+class Mode(enum.IntEnum):
+    """What a feedforward frame asks of the drive (the frames' ``Mode`` field)."""
+
+    COMMAND = 0  # apply this current (in the held session)
+    REQUEST = 1  # grant me the session (no current)
+    RELEASE = 2  # my stream ends here: release the session, ramp to zero
+
+
+@dataclass(frozen=True)
+class Command:
+    """The dating and claim fields of an intact feedforward frame, with its raw current."""
+
+    cycle: int  # the stamp: the drive cycle the frame is applied at
+    raw: int  # the current in the profile's raw unit
+    session: int
+    mode: Mode
 
 
 def is_fresh(age_cycles: float, max_age_cycles: float) -> bool:
@@ -70,8 +81,8 @@ def is_fresh(age_cycles: float, max_age_cycles: float) -> bool:
     Parameters
     ----------
     age_cycles
-        Age of the frame in control cycles (an integer on the drive, a float in
-        the audit, where it comes from timestamps).
+        Age of the frame in drive cycles (an integer on the drive, a float in the
+        audit, where it comes from timestamps).
     max_age_cycles
         The validity window in cycles.
 
@@ -83,8 +94,14 @@ def is_fresh(age_cycles: float, max_age_cycles: float) -> bool:
     return age_cycles <= max_age_cycles + AGE_TOLERANCE_CYCLES
 
 
+def stamp_age(cycle: int, stamp: int) -> int:
+    """``cycle - stamp`` modulo :data:`STAMP_MODULUS`, as a signed number of cycles."""
+    diff = (cycle - stamp) % STAMP_MODULUS
+    return diff - STAMP_MODULUS if diff >= STAMP_MODULUS // 2 else diff
+
+
 def transport_cycles(real_time: bool, waits_for_sync: bool) -> int:
-    """Cycles a fresh frame takes from its send to its application, beyond its age.
+    """Cycles a fresh frame takes from its send to its application, for the audit.
 
     Parameters
     ----------
@@ -103,32 +120,15 @@ def transport_cycles(real_time: bool, waits_for_sync: bool) -> int:
     return int(real_time) + int(waits_for_sync)
 
 
-def slot_margin_cycles(real_time: bool) -> float:
-    """How much earlier than its slot a frame is taken to have left, in cycles.
-
-    Parameters
-    ----------
-    real_time
-        The drive runs on its own clock (stepped, both sides count one clock).
-
-    Returns
-    -------
-    float
-        :data:`SLOT_MARGIN_CYCLES` in real time, 0 stepped.
-    """
-    return SLOT_MARGIN_CYCLES if real_time else 0.0
-
-
 def age_by_time(apply_s: float, sent_s: float, period_s: float, transport: int) -> float:
-    """Age in cycles of a frame sent (or received) at ``sent_s`` and applied at ``apply_s``.
+    """Age in cycles, by the audit's clock, of a frame sent at ``sent_s``, applied at ``apply_s``.
 
     Parameters
     ----------
     apply_s
         Start of the drive cycle that applies the frame, in s.
     sent_s
-        When the frame left the sender (the audit: the end of the send call) or
-        reached the receiver (the drive: its reception stamp), in s, on the same clock.
+        When the frame left the sender (the end of the send call), in s, same clock.
     period_s
         The control cycle, in s.
     transport
@@ -142,152 +142,125 @@ def age_by_time(apply_s: float, sent_s: float, period_s: float, transport: int) 
     return (apply_s - sent_s) / period_s - transport
 
 
-def refuse_outlived(counts: RejectCounts) -> None:
-    """Count a frame accepted by its counter but refused by its reception stamp as stale."""
-    counts.counts[Verdict.ACCEPTED] -= 1
-    counts.add(Verdict.STALE)
-
-
-def _signed(value: int) -> int:
-    """``value`` modulo the counter range, as a signed difference."""
-    value %= COUNTER_MODULUS
-    return value - COUNTER_MODULUS if value >= COUNTER_MODULUS // 2 else value
-
-
 @dataclass
-class FrameClock:
-    """Classifies frames by their alive counter against the receiver's cycle count.
+class DriveClock:
+    """The drive side: its cycle, the session it holds, and the verdict on each frame.
 
     Parameters
     ----------
     max_age_cycles
-        Validity window: the largest age, in drive cycles, of an applied frame.
-    period_s
-        The drive cycle in s, for :meth:`outlived`; None: no rule by reception stamp.
-    transport_cycles
-        :func:`transport_cycles` of the drive's mode (0: stepped, the default).
-    slot_margin_cycles
-        :func:`slot_margin_cycles` of the drive's mode (0: stepped, the default).
+        Validity window: the largest age, in drive cycles, of a frame taken.
 
-    Call :meth:`judge` for each intact frame, :meth:`tick` once per drive
-    cycle, :meth:`link_lost` when the supervisor declares the link lost, and
-    :meth:`outlived` on the frame about to be applied.
+    ``cycle`` is the drive cycle a frame judged now is applied at. Call
+    :meth:`advance` once per drive cycle, :meth:`judge` for each intact frame and
+    :meth:`expire` once per cycle with the link's timeout: a session without a granted
+    request or an accepted command for longer ends (the link is lost).
     """
 
     max_age_cycles: int
-    period_s: float | None = None
-    transport_cycles: int = 0
-    slot_margin_cycles: float = 0.0
-    cycle: int = 0  # drive cycles, modulo the counter range
-    anchored: bool = False
-    offset: int = 0  # drive cycle minus counter of a frame of age 0
-    last_counter: int | None = None
-    last_age: int = 0  # age of the last accepted frame, counted up without wrapping
-    origin_s: float | None = None  # slot of counter step 0: earliest reception - steps x period
-    _late_offset: int | None = None
-    _late_run: int = 0
-    _late_counter: int = 0
+    cycle: int = 0
+    session: int = 0
+    last_stamp: int | None = None  # newest stamp taken in the held session
+    idle_cycles: int = 0  # cycles since the held session's last granted or accepted frame
 
-    def tick(self) -> None:
-        """One drive cycle has passed."""
-        self.cycle = (self.cycle + 1) % COUNTER_MODULUS
-        self.last_age = min(self.last_age + 1, _AGE_CAP)
+    def advance(self) -> None:
+        """The next drive cycle begins."""
+        self.cycle = (self.cycle + 1) % STAMP_MODULUS
+        self.idle_cycles += 1
 
-    def link_lost(self) -> None:
-        """Forget the last counter (the anchor stays): any newer frame may follow."""
-        self.last_counter = None
+    def expire(self, timeout_cycles: int) -> bool:
+        """Release the session if idle for more than ``timeout_cycles``; whether it was."""
+        if self.session and self.idle_cycles > timeout_cycles:
+            self.release()
+            return True
+        return False
 
-    def outlived(self, sent_s: float, apply_s: float) -> bool:
-        """Whether a frame sent at ``sent_s`` at the earliest is too old to apply at ``apply_s``.
+    def release(self) -> None:
+        """End the held session (link lost, or released): a new request is needed."""
+        self.session = 0
+        self.last_stamp = None
 
-        The second rule, by time (see the module docstring): not :func:`is_fresh`
-        by :func:`age_by_time`. ``sent_s`` is :meth:`sent_by` of the frame (or
-        its reception stamp). Both times in s, on one clock.
+    def judge(self, stamp: int, session: int, mode: Mode) -> Verdict:
+        """Verdict on an intact frame; a granted request or an accepted command is taken.
+
+        Parameters
+        ----------
+        stamp
+            The drive cycle the frame was made for.
+        session
+            The sender's session id.
+        mode
+            What the frame asks (:class:`Mode`).
         """
-        if self.period_s is None:
-            return False
-        age = age_by_time(apply_s, sent_s, self.period_s, self.transport_cycles)
-        return not is_fresh(age, self.max_age_cycles)
-
-    def sent_by(self, counter: int, received_s: float) -> float:
-        """The earliest time the frame with ``counter``, received at ``received_s``, was sent.
-
-        Its slot (module docstring) less the margin, or its reception stamp if
-        that is earlier (no slot yet, or no period). Call after :meth:`judge` of
-        the frame with the same stamp, which has moved the slot to it if it came
-        earlier.
-        """
-        if self.period_s is None or self.origin_s is None:
-            return received_s
-        slot = self._slot(counter, received_s)
-        return min(received_s, slot - self.slot_margin_cycles * self.period_s)
-
-    def _slot(self, counter: int, received_s: float) -> float:
-        """Slot of the counter step nearest the reception (the counter unwrapped by time)."""
-        assert self.period_s is not None and self.origin_s is not None
-        steps = (received_s - self.origin_s) / self.period_s
-        unwrapped = counter + COUNTER_MODULUS * round((steps - counter) / COUNTER_MODULUS)
-        return self.origin_s + unwrapped * self.period_s
-
-    def _set_origin(self, counter: int, received_s: float | None, earlier_only: bool) -> None:
-        if received_s is None or self.period_s is None:
-            return
-        if self.origin_s is None or not earlier_only:
-            self.origin_s = received_s - counter * self.period_s
-        elif received_s < (slot := self._slot(counter, received_s)):
-            self.origin_s -= slot - received_s
-
-    def age(self, counter: int) -> int:
-        """Drive cycles the frame with ``counter`` arrives after its own cycle."""
-        return _signed(self.cycle - counter - self.offset)
-
-    def judge(self, counter: int, received_s: float | None = None) -> Verdict:
-        """Verdict on an intact frame carrying ``counter``; accepted frames are the new last.
-
-        ``received_s``, the frame's reception stamp, moves the slot (:meth:`sent_by`)
-        when the frame is accepted or anchors.
-        """
-        if not self.anchored:
-            self._anchor(counter, received_s)
-            return Verdict.RESYNC
-        # order against the last accepted frame while it is itself fresh; once it is
-        # older than the window, any frame older still is stale by its age anyway
-        last = self.last_counter
-        if last is not None and is_fresh(self.last_age, self.max_age_cycles):
-            delta = (counter - last) % COUNTER_MODULUS
-            if delta == 0:
+        age = stamp_age(self.cycle, stamp)
+        if age < 0:
+            return Verdict.EARLY
+        if not is_fresh(age, self.max_age_cycles):
+            return Verdict.STALE
+        if session == 0 or (self.session not in (0, session)):
+            return Verdict.FOREIGN
+        if mode is Mode.REQUEST:
+            if self.session == 0:
+                self.session, self.last_stamp = session, None
+            self.idle_cycles = 0
+            return Verdict.GRANTED
+        if self.session == 0:
+            return Verdict.FOREIGN  # a command (or release) of a session not granted
+        if self.last_stamp is not None:
+            newer = stamp_age(stamp, self.last_stamp)
+            if newer == 0:
                 return Verdict.DUPLICATE
-            if delta >= COUNTER_MODULUS // 2:
+            if newer < 0:
                 return Verdict.OUT_OF_ORDER
-        age = self.age(counter)
-        if not is_fresh(age, self.max_age_cycles) or age < -MAX_EARLY_CYCLES:
-            return self._late(counter, received_s)
-        if age < 0:  # the anchor came from a late frame: this one is earlier
-            self.offset = (self.offset + age) % COUNTER_MODULUS
-        self._set_origin(counter, received_s, earlier_only=True)
-        self._late_run = 0
-        self.last_counter = counter
-        self.last_age = max(age, 0)
+        if mode is Mode.RELEASE:
+            self.release()
+            return Verdict.RELEASED
+        self.last_stamp = stamp
+        self.idle_cycles = 0
         return Verdict.ACCEPTED
 
-    def _late(self, counter: int, received_s: float | None) -> Verdict:
-        offset = (self.cycle - counter) % COUNTER_MODULUS
-        steady = (
-            self._late_run > 0
-            and offset == self._late_offset
-            and (counter - self._late_counter) % COUNTER_MODULUS == 1
-        )
-        self._late_run = self._late_run + 1 if steady else 1
-        self._late_offset, self._late_counter = offset, counter
-        if self._late_run >= REANCHOR_FRAMES:
-            self._anchor(counter, received_s)
-            return Verdict.RESYNC
-        return Verdict.STALE
 
-    def _anchor(self, counter: int, received_s: float | None) -> None:
-        self._set_origin(counter, received_s, earlier_only=False)
-        self.anchored = True
-        self.offset = (self.cycle - counter) % COUNTER_MODULUS
-        self.last_counter = counter
-        self.last_age = 0
-        self._late_run = 0
+@dataclass
+class DriveTime:
+    """The compensator side: the drive cycle a frame sent now will be applied at, at the latest.
+
+    Parameters
+    ----------
+    period_s
+        The drive cycle, to count the cycles passed since the drive's last status by
+        this side's clock (e2e); None to count SYNCs instead (cia402, :meth:`sync`).
+    horizon_cycles
+        Counting further than this from the last status is guessing: no date then.
+    """
+
+    period_s: float | None
+    horizon_cycles: int
+    cycle: int | None = None  # the last cycle the drive published
+    session: int = 0  # the session it announced with it
+    seen_s: float = 0.0  # when that status was handled, by this side's clock
+    syncs: int = 0  # SYNCs since (cia402)
+
+    def observe(self, cycle: int, session: int, now_s: float) -> None:
+        """The drive published ``cycle`` (just run) and its ``session``; handled at ``now_s``."""
+        self.cycle, self.session, self.seen_s, self.syncs = cycle, session, now_s, 0
+
+    def sync(self) -> None:
+        """A SYNC passed after the last status (sent by us as master, or seen)."""
+        self.syncs += 1
+
+    def stamp(self, now_s: float) -> int | None:
+        """The stamp of a frame sent at ``now_s``: the drive cycle it applies at, or None.
+
+        None before the drive has published its cycle, or when the last status is more
+        than ``horizon_cycles`` old: the frame is then not sent (the drive's timeout
+        takes over), never dated by a guess.
+        """
+        if self.cycle is None:
+            return None
+        if self.period_s is None:
+            passed = self.syncs
+        else:
+            passed = max(0, math.floor((now_s - self.seen_s) / self.period_s))
+        if passed > self.horizon_cycles:
+            return None
+        return (self.cycle + passed + 1) % STAMP_MODULUS

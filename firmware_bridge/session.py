@@ -14,9 +14,10 @@ answer to each. With the built-in emulator, a :class:`SyncProducer` plays the NC
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
@@ -38,6 +39,7 @@ from firmware_bridge.profiles.base import (
 )
 from firmware_bridge.settings import CanConfig
 from firmware_bridge.streamer import (
+    ChannelTakenError,
     Streamer,
     check_channel_free,
     count_unsent_applied,
@@ -75,16 +77,16 @@ class Rig:
         self.realtime = False  # set by run_stream: the drive applies at its next cycle
         try:
             comp_bus = self._stack.enter_context(open_bus(cfg))
-            listen_s = max(CHANNEL_CHECK_S, 10 * cfg.cycle_period_s)
-            check_channel_free(comp_bus, cfg, self.tx, listen_s)
-            if log_path is not None:
-                monitor = self._stack.enter_context(open_bus(cfg))
-                notifier = can.Notifier(monitor, [can.Logger(str(log_path))])
-                self._stack.callback(notifier.stop)
             self.faulty = FaultyBus(
                 comp_bus, tuple(faults), self.tx.target_ids, self.tx.self_checked, seed
             )
             self.streamer = Streamer(cfg, self.faulty, self.tx)
+            listen_s = max(CHANNEL_CHECK_S, 10 * cfg.cycle_period_s)
+            check_channel_free(self.streamer, listen_s, time.time)
+            if log_path is not None:
+                monitor = self._stack.enter_context(open_bus(cfg))
+                notifier = can.Notifier(monitor, [can.Logger(str(log_path))])
+                self._stack.callback(notifier.stop)
             if builtin_drive:
                 self.emulator = DriveEmulator(cfg, self._stack.enter_context(open_bus(cfg)))
             if builtin_drive and self.tx.follows_sync:
@@ -111,12 +113,43 @@ class Rig:
             raise BusError("this rig streams to an external drive: no emulator to step")
         return self.emulator
 
+    @contextlib.contextmanager
+    def watching(self) -> Iterator[None]:
+        """Keep the channel claim while the caller sets up: the bus is read in a thread,
+        and another node's frames with this compensator's ids, or the drive held by
+        another session, end the block with :class:`ChannelTakenError`."""
+        stop = threading.Event()
+
+        def watch() -> None:
+            while not stop.is_set() and self.streamer.taken is None:
+                msg = self.streamer.bus.recv(timeout=0.005)
+                if msg is not None:
+                    self.streamer.take_reply(msg, time.time())
+
+        watcher = threading.Thread(target=watch, name="gms-comp channel watch", daemon=True)
+        watcher.start()
+        try:
+            yield
+        finally:
+            stop.set()
+            watcher.join()
+        if self.streamer.taken is not None:
+            raise ChannelTakenError(self.streamer.taken)
+
     def send_cycle(self, cycle: int, current_A: float | None, now_s: float | None = None) -> None:
-        """The compensator's part of control cycle ``cycle`` (nothing while stalled)."""
+        """The compensator's part of control cycle ``cycle`` (nothing while stalled).
+
+        Raises
+        ------
+        ChannelTakenError
+            Once another node sends this compensator's frames or holds the drive.
+        """
         now_s = cycle * self.cfg.cycle_period_s if now_s is None else now_s
         self.faulty.begin_cycle(cycle, now_s)
         if not self.faulty.stalled():
             self.streamer.cycle(cycle, current_A, now_s)
+        if self.streamer.taken is not None:
+            raise ChannelTakenError(self.streamer.taken)
 
     def step(self, cycle: int, current_A: float | None) -> float:
         """Stepped mode: one control cycle and one drive cycle; the applied current."""
@@ -125,14 +158,22 @@ class Rig:
         self.send_cycle(cycle, current_A)
         return self.drive.step(cycle * self.cfg.cycle_period_s)
 
-    def stop(self) -> str:
-        """End a clean stream (the ramp to zero is done): the profile's stop frames.
+    def stop(self, cycle: int, now_s: float) -> str:
+        """End a clean stream (the ramp to zero is done): release the session, then the
+        profile's stop frames.
+
+        Parameters
+        ----------
+        cycle, now_s
+            The control cycle of the release and its time on the streamer's clock.
 
         Returns
         -------
         str
             What the stop did, for the report.
         """
+        self.faulty.begin_cycle(cycle, now_s)
+        self.streamer.release(cycle, now_s)
         frames, note = self.tx.stop_frames()
         try:
             for msg in frames:
@@ -150,6 +191,8 @@ class Rig:
             "profile": self.cfg.profile,
             "drive": "emulator" if self.emulator is not None else "external",
             "frames_sent": self.streamer.frames_sent,
+            "requests_sent": self.streamer.requests_sent,
+            "undated_cycles": self.streamer.undated_cycles,
             "send_errors": self.streamer.send_errors,
             "non_finite_feedforward": self.streamer.source_faults,
             "foreign_frames": self.streamer.foreign_frames,
@@ -163,7 +206,7 @@ class Rig:
             "transport_cycles",
             "frames_applied",
             "frames_rejected",
-            "frames_resync",
+            "sessions_granted",
             "stale_or_corrupt_applied",
             "max_applied_current_A",
             "drive_state",
@@ -177,7 +220,7 @@ class Rig:
             "transport_cycles": transport,
             "frames_applied": status["frames_applied"],
             "frames_rejected": status["frames_rejected"],
-            "frames_resync": status["frames_resync"],
+            "sessions_granted": status["sessions_granted"],
             "stale_or_corrupt_applied": count_unsent_applied(
                 self.streamer.sent_log,
                 self.emulator.applied_log,
@@ -215,6 +258,7 @@ def stream_on(
     source: FeedforwardSource,
     duration_s: float,
     clock: Callable[[], float] = time.perf_counter,
+    stop_request: threading.Event | None = None,
 ) -> dict[str, Any]:
     """Stream ``source`` over an open ``rig`` for ``duration_s`` in real time, then ramp down.
 
@@ -228,17 +272,28 @@ def stream_on(
         Streaming time before the ramp to zero.
     clock
         Monotonic clock of the control loop.
+    stop_request
+        Set (by a signal handler) to end the stream early: the same clean stop,
+        ramp to zero and release. A Ctrl-C inside the loop does the same.
 
     Returns
     -------
     dict
-        :meth:`Rig.report` plus the loop's timing statistics.
+        :meth:`Rig.report` plus the loop's timing statistics; ``"interrupted"`` is
+        true when the stream ended on a stop request.
+
+    Raises
+    ------
+    ChannelTakenError
+        When another node sends this compensator's frames or holds the drive: the
+        session is released first.
     """
     cfg = rig.cfg
-    rig.streamer.drain_replies()  # frames queued since the rig opened are history
+    rig.streamer.drain_replies(time.time())  # frames queued since the rig opened are history
     # the drive and the audit log run on the bus timestamps' clock
     rig.streamer.send_clock = time.time
     rig.realtime = True
+    stop_request = stop_request if stop_request is not None else threading.Event()
     stop = threading.Event()
     devices = [
         threading.Thread(target=device.run, args=(stop, time.time), daemon=True)
@@ -249,17 +304,20 @@ def stream_on(
         device.start()
     try:
         if rig.tx.sync is not None and rig.tx.follows_sync:
-            timing = _follower_loop(rig, rig.tx.sync, source, duration_s, clock)
+            timing = _follower_loop(rig, rig.tx.sync, source, duration_s, clock, stop_request)
         else:
-            timing = _control_loop(rig, source, duration_s, clock)
-        if not timing.get("sync_lost"):
-            timing["end_of_stream"] = rig.stop()
+            timing = _control_loop(rig, source, duration_s, clock, stop_request)
     finally:
         time.sleep(cfg.fallback_time_s)  # let the drive see the end of the stream
         stop.set()
         for device in devices:
             device.join()
-    return {**rig.report(), **timing}
+    return {**rig.report(), **timing, "interrupted": stop_request.is_set()}
+
+
+def _ends(cycle: int, n_cycles: int, stop_request: threading.Event) -> int:
+    """The cycle the stream ends at: ``n_cycles``, or now on a stop request."""
+    return min(n_cycles, cycle) if stop_request.is_set() else n_cycles
 
 
 class _LoopStats:
@@ -290,7 +348,11 @@ class _LoopStats:
 
 
 def _control_loop(
-    rig: Rig, source: FeedforwardSource, duration_s: float, clock: Callable[[], float]
+    rig: Rig,
+    source: FeedforwardSource,
+    duration_s: float,
+    clock: Callable[[], float],
+    stop_request: threading.Event,
 ) -> dict[str, Any]:
     """SYNC master: cycle ``k`` is due at ``k * period`` after the start, on ``clock``."""
     period = rig.cfg.cycle_period_s
@@ -302,20 +364,49 @@ def _control_loop(
 
     stats = _LoopStats(period)
     cycle = 0
-    while cycle < n_cycles or rig.streamer.shaper.value_raw != 0:
+
+    def one_cycle(end: int) -> None:
+        nonlocal cycle
         scheduled = cycle * period
         _sleep_until(scheduled, since_start)
         stall_end = rig.faulty.stall_end(since_start())
         if stall_end is not None:  # an injected controller stall blocks the loop
             _sleep_until(stall_end, since_start)
         start = since_start()
-        rig.send_cycle(cycle, source(scheduled) if cycle < n_cycles else None, start)
+        rig.send_cycle(cycle, source(scheduled) if cycle < end else None, start)
         stats.record(start - scheduled, since_start() - start)
         # a late loop does not catch up with a burst: it resumes at the current slot
         behind = int(since_start() / period) - cycle
         stats.skipped += max(0, behind - 1)
         cycle += max(1, behind)
-    return stats.summary(cycle)
+
+    with _released_when_taken(rig, lambda: (cycle, since_start())):
+        while cycle < (end := _ends(cycle, n_cycles, stop_request)) or _ramping(rig):
+            _interruptible(one_cycle, end, stop_request)
+    return {**stats.summary(cycle), "end_of_stream": rig.stop(cycle, since_start())}
+
+
+def _ramping(rig: Rig) -> bool:
+    return rig.streamer.shaper.value_raw != 0
+
+
+def _interruptible(step: Callable[[int], None], end: int, stop_request: threading.Event) -> None:
+    """One cycle of a stream loop; a Ctrl-C during it asks for the clean stop instead."""
+    try:
+        step(end)
+    except KeyboardInterrupt:
+        stop_request.set()
+
+
+@contextlib.contextmanager
+def _released_when_taken(rig: Rig, now: Callable[[], tuple[int, float]]) -> Iterator[None]:
+    """A taken channel ends the stream: the session is released before the error rises."""
+    try:
+        yield
+    except ChannelTakenError:
+        with contextlib.suppress(can.CanError):
+            rig.streamer.release(*now())
+        raise
 
 
 def _follower_loop(
@@ -324,16 +415,14 @@ def _follower_loop(
     source: FeedforwardSource,
     duration_s: float,
     clock: Callable[[], float],
+    stop_request: threading.Event,
 ) -> dict[str, Any]:
     """SYNC follower: one RPDO in answer to each SYNC of the NC, applied at the next.
 
-    Cycle ``k`` is the SYNC in the ``k``-th period since the first one (the
-    frame's alive counter, dated by the drive on its own cycles, so an NC that
-    skips a SYNC does not put the counter behind time), by the SYNC counter
-    when the NC sends one (a SYNC sent late keeps its slot; by time alone one
-    late by half a cycle would take the next slot and put every later counter a
-    cycle ahead of time, younger than it is to the drive); a loop that missed
-    SYNCs answers only the latest (counted late), so no two RPDOs share a window.
+    Cycle ``k`` is the SYNC in the ``k``-th period since the first one (the time of
+    the feedforward's source), by the SYNC counter when the NC sends one (a SYNC
+    sent late keeps its slot; by time alone one late by half a cycle would take the
+    next slot); a loop that missed SYNCs answers only the latest (counted late).
     Lateness is the reaction time to the SYNC, on the bus timestamps' clock.
     """
     period = rig.cfg.cycle_period_s
@@ -345,10 +434,12 @@ def _follower_loop(
     counter: int | None = None
     wait_s = FIRST_SYNC_WAIT_S
     sync_lost = False
-    while cycle + 1 < n_cycles or rig.streamer.shaper.value_raw != 0:
+
+    def one_cycle(end: int) -> None:
+        nonlocal cycle, counter, seen, first_sync_s, wait_s, sync_lost
         if not _await_sync(rig, sync, seen, wait_s, clock):
             sync_lost = True  # the NC stopped: stay silent, the drive falls back
-            break
+            return
         wait_s = SYNC_GONE_S
         if cycle < 0:
             first_sync_s, slot = sync.last_s, 0
@@ -361,10 +452,19 @@ def _follower_loop(
         cycle = slot
         lateness = time.time() - sync.last_s
         start = clock()
-        current = source(cycle * period) if cycle < n_cycles else None
+        current = source(cycle * period) if cycle < end else None
         rig.send_cycle(cycle, current, cycle * period)
         stats.record(lateness, clock() - start)
-    return {**stats.summary(cycle + 1), "syncs_seen": sync.seen, "sync_lost": sync_lost}
+
+    with _released_when_taken(rig, lambda: (cycle + 1, (cycle + 1) * period)):
+        while not sync_lost and (
+            cycle + 1 < (end := _ends(cycle + 1, n_cycles, stop_request)) or _ramping(rig)
+        ):
+            _interruptible(one_cycle, end, stop_request)
+    timing = {**stats.summary(cycle + 1), "syncs_seen": sync.seen, "sync_lost": sync_lost}
+    if not sync_lost:
+        timing["end_of_stream"] = rig.stop(cycle + 1, (cycle + 1) * period)
+    return timing
 
 
 def _await_sync(
@@ -380,9 +480,9 @@ def _await_sync(
             return False
         msg = rig.faulty.recv(timeout=remaining)
         if msg is not None:
-            rig.tx.on_reply(msg)
+            rig.streamer.take_reply(msg, time.time())
     while (msg := rig.faulty.recv(timeout=0.0)) is not None:
-        rig.tx.on_reply(msg)
+        rig.streamer.take_reply(msg, time.time())
     return True
 
 

@@ -2,7 +2,11 @@
 
 There is no background sender: if the loop stalls, the bus falls silent and the
 drive's timeout fires. The :class:`Shaper` saturates the current before it is
-encoded and ramps it to zero on stop or on a source fault.
+encoded and ramps it to zero on stop or on a source fault. Each cycle first reads
+what the drive published (its cycle, the session it holds), then sends: a command
+while the drive holds this compensator's session, a request for it otherwise
+(:mod:`firmware_bridge.freshness`). A frame of another node with this compensator's
+identifiers, or the drive held by another session, ends the stream (:attr:`Streamer.taken`).
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ from typing import Protocol
 import can
 
 from firmware_bridge.busload import bus_load
-from firmware_bridge.freshness import AGE_TOLERANCE_CYCLES, age_by_time, is_fresh
+from firmware_bridge.freshness import AGE_TOLERANCE_CYCLES, Mode, age_by_time, is_fresh
 from firmware_bridge.profiles.base import CompensatorTx, get_profile
 from firmware_bridge.settings import CanConfig
 from firmware_bridge.supervisor import saturate, toward_zero
@@ -73,9 +77,12 @@ class Streamer:
     bus: Sender
     tx: CompensatorTx
     frames_sent: int = 0
+    requests_sent: int = 0
+    undated_cycles: int = 0  # cycles without the drive's clock: nothing sent
     send_errors: int = 0
     source_faults: int = 0
     foreign_frames: int = 0  # frames with our exclusive ids sent by another node
+    taken: str | None = None  # why the channel is not this compensator's, once it is not
     sent_log: list[tuple[float, float, bytes]] = field(default_factory=list)
     send_clock: Callable[[], float] | None = None  # stamps the log at the send, if given
     # What this node sent lately: some transports (udp_multicast) hand a node its own
@@ -90,64 +97,117 @@ class Streamer:
         self.own_recent.append((msg.arbitration_id, bytes(msg.data)))
 
     def cycle(self, cycle: int, current_A: float | None, now_s: float) -> int:
-        """Send cycle ``cycle``'s frames; ``None`` ramps towards zero. Returns the raw command."""
+        """Send cycle ``cycle``'s frames; ``None`` ramps towards zero. Returns the raw command.
+
+        ``now_s`` is this side's clock (the drive's cycle is counted on from it).
+        """
+        self.drain_replies(now_s)
         if current_A is not None and not math.isfinite(current_A):
             self.source_faults += 1
             current_A = None
-        raw = self.shaper.step(None if current_A is None else self.tx.to_raw(current_A))
-        feedforward, extra = self.tx.frames(cycle, raw)
+        if self.tx.claim.granted:
+            mode = Mode.COMMAND
+            raw = self.shaper.step(None if current_A is None else self.tx.to_raw(current_A))
+        else:  # the drive applies nothing of ours until it grants the session
+            mode, raw, self.shaper.value_raw = Mode.REQUEST, 0, 0
+        self._send_frames(self.tx.feedforward(mode, raw, now_s), mode, self.tx.extra(cycle), now_s)
+        return raw
+
+    def release(self, cycle: int, now_s: float) -> None:
+        """End the session: a release frame (and the cycle's SYNC as master)."""
+        self.drain_replies(now_s)
+        if self.tx.claim.granted:
+            frame = self.tx.feedforward(Mode.RELEASE, 0, now_s)
+            self._send_frames(frame, Mode.RELEASE, self.tx.extra(cycle), now_s)
+
+    def _send_frames(
+        self,
+        feedforward: can.Message | None,
+        mode: Mode,
+        extra: list[can.Message],
+        now_s: float,
+    ) -> None:
         # stamped on both sides of the send: the frame entered the bus in between,
         # however long the thread waited (GIL, scheduler) around the call
         before = now_s if self.send_clock is None else self.send_clock()
         try:
-            self._send(feedforward)
-            self.frames_sent += 1
-            after = now_s if self.send_clock is None else self.send_clock()
-            self.sent_log.append((before, after, bytes(feedforward.data)))
+            if feedforward is None:
+                self.undated_cycles += 1
+            else:
+                self._send(feedforward)
+                self._log_sent(feedforward, mode, before, now_s)
             for msg in extra:
                 self._send(msg)
         except can.CanError:
             self.send_errors += 1  # the bus is off; the drive's timeout takes over
-        self.drain_replies()
-        return raw
 
-    def drain_replies(self) -> None:
-        """Hand every frame waiting on the bus to the profile; count another node's."""
+    def _log_sent(self, msg: can.Message, mode: Mode, before: float, now_s: float) -> None:
+        if mode is Mode.COMMAND:  # the audit's record of what may be applied
+            self.frames_sent += 1
+            after = now_s if self.send_clock is None else self.send_clock()
+            self.sent_log.append((before, after, bytes(msg.data)))
+        elif mode is Mode.REQUEST:
+            self.requests_sent += 1
+
+    def drain_replies(self, now_s: float = 0.0) -> None:
+        """Hand every frame waiting on the bus to the profile; note another node's."""
         while (msg := self.bus.recv(timeout=0.0)) is not None:
-            key = (msg.arbitration_id, bytes(msg.data))
-            if key in self.own_recent:
-                self.own_recent.remove(key)  # our own frame handed back by the transport
-                continue
-            if msg.arbitration_id in self.tx.exclusive_ids:
-                self.foreign_frames += 1
-            self.tx.on_reply(msg)
+            self.take_reply(msg, now_s)
+
+    def take_reply(self, msg: can.Message, now_s: float) -> None:
+        """One frame from the bus, handled at ``now_s``."""
+        key = (msg.arbitration_id, bytes(msg.data))
+        if key in self.own_recent:
+            self.own_recent.remove(key)  # our own frame handed back by the transport
+            return
+        if msg.arbitration_id in self.tx.exclusive_ids:
+            self.foreign_frames += 1
+            self.taken = self.taken or (
+                f"another node sends frame 0x{msg.arbitration_id:03X} on "
+                f"{self.cfg.interface} channel {self.cfg.channel!r}"
+            )
+        self.tx.on_reply(msg, now_s)
+        other = self.tx.claim.held_by_other
+        if other:
+            self.taken = self.taken or (
+                f"drive node {self.cfg.drive_node_id} takes commands from another "
+                f"compensator (session {other})"
+            )
 
 
-def check_channel_free(bus: Sender, cfg: CanConfig, tx: CompensatorTx, listen_s: float) -> None:
-    """Refuse to stream if another node already sends our frames on the channel.
+def check_channel_free(
+    streamer: Streamer, listen_s: float, clock: Callable[[], float] = time.monotonic
+) -> None:
+    """Refuse to stream if another node sends our frames or holds the drive.
 
-    One compensator per drive: listens ``listen_s`` for frames with the ids
-    only this compensator may send (the feedforward frame; cia402 also its
-    heartbeat and, as SYNC master, SYNC) and raises :class:`BusError` on the first.
+    One compensator per drive: listens ``listen_s`` for frames with the ids only
+    this compensator may send (the feedforward frame; cia402 also its heartbeat and,
+    as SYNC master, SYNC) and for the drive announcing a session of another
+    compensator, and raises :class:`BusError` on the first.
 
     Parameters
     ----------
-    bus
-        The compensator's bus, before it sends anything.
-    cfg, tx
-        The ``[can]`` section and the profile's sending side.
+    streamer
+        The compensator's streamer, before it sends anything.
     listen_s
         How long to listen; several cycles of the other node's stream.
+    clock
+        The clock the drive's status frames are handled on.
     """
     deadline = time.monotonic() + listen_s
     while (remaining := deadline - time.monotonic()) > 0:
-        msg = bus.recv(timeout=remaining)
-        if msg is not None and msg.arbitration_id in tx.exclusive_ids:
-            raise BusError(
-                f"another node already sends frame 0x{msg.arbitration_id:03X} on "
-                f"{cfg.interface} channel {cfg.channel!r} (profile {cfg.profile}, drive node "
-                f"{cfg.drive_node_id}): one compensator per drive, stop the other one first"
-            )
+        msg = streamer.bus.recv(timeout=remaining)
+        if msg is not None:
+            streamer.take_reply(msg, clock())
+        if streamer.taken is not None:
+            raise ChannelTakenError(streamer.taken)
+
+
+class ChannelTakenError(BusError):
+    """Another compensator streams to the same drive: one compensator per drive."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(f"{reason}: one compensator per drive, stop the other one first")
 
 
 def count_unsent_applied(

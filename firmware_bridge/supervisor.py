@@ -19,15 +19,25 @@ from dataclasses import dataclass, field
 class Verdict(enum.Enum):
     """What the receiver did with one frame."""
 
-    ACCEPTED = "accepted"
-    RESYNC = "resync"  # valid frame taken as the new counter reference, not applied
-    CORRUPT = "corrupt"
-    DUPLICATE = "duplicate"
-    OUT_OF_ORDER = "out_of_order"
-    STALE = "stale"
+    ACCEPTED = "accepted"  # a command of the held session, applied
+    GRANTED = "granted"  # a request: the session is (or already was) the sender's
+    RELEASED = "released"  # the held session's end, asked by its compensator
+    CORRUPT = "corrupt"  # damaged, wrong length or out of the signal's range
+    DUPLICATE = "duplicate"  # the same stamp as the last command taken
+    OUT_OF_ORDER = "out_of_order"  # older than the last command taken
+    STALE = "stale"  # older than the validity window by the drive's cycle
+    EARLY = "early"  # dated in the drive's future
+    FOREIGN = "foreign"  # of another session than the one held (or none granted)
 
 
-REJECTIONS = (Verdict.CORRUPT, Verdict.DUPLICATE, Verdict.OUT_OF_ORDER, Verdict.STALE)
+REJECTIONS = (
+    Verdict.CORRUPT,
+    Verdict.DUPLICATE,
+    Verdict.OUT_OF_ORDER,
+    Verdict.STALE,
+    Verdict.EARLY,
+    Verdict.FOREIGN,
+)
 
 
 def saturate(value: int, limit: int) -> int:
@@ -65,6 +75,10 @@ class Supervisor:
     def ramp_step_raw(self) -> int:
         """Largest change per cycle of the ramp to zero."""
         return math.ceil(self.limit_raw / self.ramp_cycles)
+
+    def end(self) -> None:
+        """The link ends now (the session was released): ramp to zero from the next cycle."""
+        self.link_lost = True
 
     def tick(self, fresh_raw: int | None) -> int:
         """Advance one drive cycle and return the value applied in it."""

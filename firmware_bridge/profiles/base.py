@@ -8,12 +8,15 @@ The streamer, the drive emulator and the session use nothing else of a profile.
 from __future__ import annotations
 
 import importlib
+import random
 import threading
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import can
 
+from firmware_bridge.freshness import SESSION_IDS, DriveTime, Mode
 from firmware_bridge.profiles import PROFILES
 from firmware_bridge.settings import CanConfig
 from firmware_bridge.supervisor import RejectCounts
@@ -72,6 +75,32 @@ def sync_slot(
     return max(previous + 1, previous + advance + SYNC_COUNTER_OVERFLOW * max(wraps, 0))
 
 
+def _draw_session() -> int:
+    return random.SystemRandom().choice(SESSION_IDS)
+
+
+@dataclass
+class Claim:
+    """The compensator's view of the drive's clock and of the session it holds.
+
+    ``session`` is drawn at random per compensator; the drive grants it on request
+    and announces whom it takes commands from with its cycle (:mod:`~firmware_bridge.freshness`).
+    """
+
+    time: DriveTime
+    session: int = field(default_factory=_draw_session)
+
+    @property
+    def granted(self) -> bool:
+        """The drive announced this compensator's session."""
+        return self.time.session == self.session
+
+    @property
+    def held_by_other(self) -> int:
+        """The session of another compensator the drive announced, else 0."""
+        return 0 if self.time.session in (0, self.session) else self.time.session
+
+
 class CompensatorTx(Protocol):
     """The compensator's side of a profile: what the streamer sends each cycle."""
 
@@ -87,21 +116,29 @@ class CompensatorTx(Protocol):
     """The compensator answers an NC's SYNC instead of pacing itself."""
     sync: SyncCounter | None
     """SYNCs seen, for a profile with SYNC; else None."""
+    claim: Claim
+    """The drive's clock and the session, as this side knows them."""
 
     def to_raw(self, current_A: float) -> int:
         """Current in A -> the frame's raw unit (not saturated)."""
         ...
 
-    def frames(self, cycle: int, raw: int) -> tuple[can.Message, list[can.Message]]:
-        """The feedforward frame of control cycle ``cycle`` and the other frames due with it."""
+    def feedforward(self, mode: Mode, raw: int, now_s: float) -> can.Message | None:
+        """The feedforward frame sent at ``now_s``, stamped with the drive cycle it applies
+        at (:meth:`DriveTime.stamp`); None while the drive's clock is unknown."""
+        ...
+
+    def extra(self, cycle: int) -> list[can.Message]:
+        """The other frames due in control cycle ``cycle``, after the feedforward frame."""
         ...
 
     def traffic(self) -> list[tuple[int, float]]:
         """``(data bytes, frames per s)`` of every periodic frame of the profile."""
         ...
 
-    def on_reply(self, msg: can.Message) -> None:
-        """Take note of a frame received from the bus (status, EMCY, heartbeat, SYNC)."""
+    def on_reply(self, msg: can.Message, now_s: float) -> None:
+        """Take note of a frame received from the bus, handled at ``now_s`` (status,
+        EMCY, heartbeat, SYNC)."""
         ...
 
     def report(self) -> dict[str, Any]:

@@ -5,10 +5,18 @@ from __future__ import annotations
 import can
 import canopen
 
-from firmware_bridge.profiles.cia402.codec import Cia402Codec, configure_drive, load_drive_od
+from firmware_bridge.profiles.cia402.codec import (
+    MOTION_TPDO,
+    Cia402Codec,
+    configure_drive,
+    load_drive_od,
+)
 from firmware_bridge.profiles.cia402.receiver import Cia402Receiver
 from firmware_bridge.settings import CanConfig
 from firmware_bridge.supervisor import RejectCounts
+
+STATUSWORD_OPERATION_ENABLED = 0x0237  # ready, switched on, operation enabled, quick stop off
+STATUSWORD_SWITCH_ON_DISABLED = 0x0250
 
 
 class Cia402Drive:
@@ -21,6 +29,10 @@ class Cia402Drive:
         object dictionary as an NC would by SDO at start-up.
     bus
         The drive's bus handle.
+
+    At each SYNC it judges the feedforward RPDOs of the cycle and sends its TPDOs:
+    TPDO1 with the drive cycle and the session it holds (what the compensator dates
+    its frames by), TPDO2 with the motion (standing still: this drive moves nothing).
     """
 
     def __init__(self, cfg: CanConfig, bus: can.BusABC) -> None:
@@ -39,12 +51,25 @@ class Cia402Drive:
         return self.receiver.counts
 
     def handle(self, msg: can.Message, now_s: float) -> None:
-        """Take one frame (RPDO, SYNC, heartbeat, SDO, NMT)."""
-        self.receiver.on_message(msg, now_s)
+        """Take one frame (RPDO, SYNC, heartbeat, SDO, NMT); at a SYNC, send the TPDOs."""
+        if self.receiver.on_message(msg, now_s):
+            self._send_tpdos()
+
+    def _send_tpdos(self) -> None:
+        receiver = self.receiver
+        enabled = receiver.state == "operation_enabled" or receiver.state == "waiting"
+        status = self.codec.status_frame(
+            STATUSWORD_OPERATION_ENABLED if enabled else STATUSWORD_SWITCH_ON_DISABLED,
+            receiver.clock.cycle,
+            receiver.clock.session,
+            receiver.supervisor.output_raw,
+        )
+        network = self.node.network
+        network.send_message(status.arbitration_id, bytes(status.data))
+        network.send_message(self.codec.motion_cob_id, MOTION_TPDO.packing.pack(0, 0))
 
     def set_real_time(self, real_time: bool) -> None:
-        """Run on the drive's own clock (True) or stepped (False)."""
-        self.receiver.set_real_time(real_time)
+        """Nothing to set: the SYNC count dates every frame, stepped or in real time."""
 
     def tick(self, now_s: float, cycle: int) -> tuple[int, bytes | None]:
         """One drive cycle; the applied 0x60B2 value and the RPDO applied fresh in it."""

@@ -5,25 +5,20 @@ from __future__ import annotations
 import can
 import canopen
 
-from firmware_bridge.freshness import (
-    FrameClock,
-    refuse_outlived,
-    slot_margin_cycles,
-    transport_cycles,
-)
+from firmware_bridge.freshness import DriveClock
 from firmware_bridge.profiles.cia402.codec import (
     ABORT_ACTIONS,
     ABORT_CONNECTION_OPTION,
     EMCY_HEARTBEAT,
     EMCY_RPDO_TIMEOUT,
     EMCY_SYNC_LOST,
+    FF_RPDO,
     HEARTBEAT_OPERATIONAL,
     HEARTBEAT_PRE_OPERATIONAL,
     NMT_ENTER_PRE_OPERATIONAL,
     NMT_START,
     NMT_STOP,
     PRODUCER_HEARTBEAT,
-    RPDO1_COMM,
     TORQUE_OFFSET,
     Cia402Codec,
     read_object,
@@ -34,7 +29,12 @@ from firmware_bridge.supervisor import RejectCounts, Supervisor, Verdict
 
 
 class Cia402Receiver:
-    """The drive side: buffer RPDOs until SYNC, supervise RPDO, SYNC and heartbeat."""
+    """The drive side: buffer RPDOs until SYNC, supervise RPDO, SYNC and heartbeat.
+
+    The drive cycle is its count of SYNCs (:class:`~firmware_bridge.freshness.DriveClock`
+    advances at each one); at a SYNC the RPDOs received since the last one are judged
+    in arrival order and the newest accepted command is applied at the next :meth:`tick`.
+    """
 
     def __init__(
         self,
@@ -45,9 +45,8 @@ class Cia402Receiver:
     ) -> None:
         self.node = node
         self.codec = codec
-        self.cycle_period_s = cfg.cycle_period_s
         self.counts = RejectCounts()
-        event_timer_s = read_object(node, RPDO1_COMM, 5) * 1e-3
+        event_timer_s = read_object(node, FF_RPDO.comm, 5) * 1e-3
         self.supervisor = Supervisor(
             limit_raw, cycles_within(event_timer_s, cfg.cycle_period_s), cfg.ramp_cycles
         )
@@ -55,11 +54,9 @@ class Cia402Receiver:
         consumer = read_object(node, 0x1016, 1)
         self.heartbeat_producer = 0x700 + ((consumer >> 16) & 0x7F)
         self.heartbeat_timeout_s = (consumer & 0xFFFF) * 1e-3
-        self.clock = FrameClock(cfg.max_frame_age_cycles, cfg.cycle_period_s)
-        self.waits_for_sync = not cfg.sync_master  # the NC's SYNC follows the RPDO
-        self.set_real_time(False)
-        self.window: list[tuple[bytes, float]] = []  # RPDOs since SYNC, with reception stamps
-        self.fresh: tuple[int, bytes, float] | None = None
+        self.clock = DriveClock(cfg.max_frame_age_cycles)
+        self.window: list[bytes] = []  # RPDOs since the last SYNC
+        self.fresh: tuple[int, bytes] | None = None
         self.applied_data: bytes | None = None
         self.last_sync_s: float | None = None
         self.last_heartbeat_s: float | None = None
@@ -69,19 +66,19 @@ class Cia402Receiver:
         self._next_heartbeat_s: float | None = None
         self.out_of_operation = False  # taken out of operation by NMT: no PDO, no supervision
 
-    def on_message(self, msg: can.Message, now_s: float) -> None:
-        """Take one frame received at ``now_s``: RPDO, SYNC, heartbeat, NMT, SDO."""
+    def on_message(self, msg: can.Message, now_s: float) -> bool:
+        """Take one frame received at ``now_s``; whether it was a SYNC (the PDOs are due)."""
         cob_id = msg.arbitration_id
         if msg.is_error_frame:
             self.counts.add(Verdict.CORRUPT)  # the controller's CRC caught a damaged frame
         elif cob_id == self.codec.rpdo_cob_id:
-            if self.codec.unpack_rpdo(bytes(msg.data)) is not None:
-                self.window.append((bytes(msg.data), now_s))
-            else:
-                self.counts.add(Verdict.CORRUPT)
+            if not self.out_of_operation:
+                self.window.append(bytes(msg.data))
         elif cob_id == self.codec.sync_cob_id:
             self.last_sync_s = now_s
-            self._close_window()
+            if not self.out_of_operation:
+                self._close_window()
+                return True
         elif cob_id == self.heartbeat_producer:
             self.last_heartbeat_s = now_s
         elif cob_id == 0x000 and len(msg.data) == 2:
@@ -89,38 +86,38 @@ class Cia402Receiver:
             self.node.network.notify(cob_id, msg.data, msg.timestamp)
         else:  # SDO, NMT: the canopen LocalNode answers
             self.node.network.notify(cob_id, msg.data, msg.timestamp)
-
-    def set_real_time(self, real_time: bool) -> None:
-        """Whether the drive runs on its own clock (it applies at its next cycle)."""
-        self.clock.transport_cycles = transport_cycles(real_time, self.waits_for_sync)
-        self.clock.slot_margin_cycles = slot_margin_cycles(real_time)
+        return False
 
     def _close_window(self) -> None:
-        """At SYNC: judge the window's RPDOs in arrival order; the newest fresh one wins.
-
-        Frames are dated in drive cycles, which run on time whether SYNC comes
-        or not; the compensator numbers its frames by the same time slots (as
-        SYNC follower: the slot of the SYNC it answers). The winner is dated
-        once more by its reception stamp when it is applied (:meth:`tick`).
-        """
+        """At SYNC: the next drive cycle; its RPDOs judged in arrival order, the newest
+        accepted command wins."""
+        self.clock.advance()
         window, self.window = self.window, []
-        for data, received_s in window:
-            unpacked = self.codec.unpack_rpdo(data)
-            assert unpacked is not None  # checked on arrival
-            raw, counter = unpacked
-            verdict = self.clock.judge(counter, received_s)
+        for data in window:
+            command = self.codec.unpack_rpdo(data)
+            if command is None:
+                self.counts.add(Verdict.CORRUPT)
+                continue
+            verdict = self.clock.judge(command.cycle, command.session, command.mode)
             self.counts.add(verdict)
             if verdict is Verdict.ACCEPTED:
-                self.fresh = (raw, data, self.clock.sent_by(counter, received_s))
+                self.fresh = (command.raw, data)
+            elif verdict is Verdict.RELEASED:  # a clean stop: no timeout, no fault follows
+                self.fresh = None
+                self.supervisor.end()
+                self.last_heartbeat_s = None
+                self.active_faults.discard(EMCY_RPDO_TIMEOUT)
 
     def _on_nmt(self, command: int, node_id: int) -> None:
-        """An orderly stop (pre-operational, stopped) ends PDOs and their supervision."""
+        """An orderly stop (pre-operational, stopped) ends PDOs, sessions and supervision."""
         if node_id not in (0, self.node.id):
             return
         if command in (NMT_ENTER_PRE_OPERATIONAL, NMT_STOP):
             self.out_of_operation = True
             self.active_faults.clear()
             self.window = []
+            self.clock.release()
+            self.supervisor.end()
         elif command == NMT_START:
             self.out_of_operation = False
             self.last_sync_s = self.last_heartbeat_s = None
@@ -130,7 +127,6 @@ class Cia402Receiver:
         if self.out_of_operation:  # no PDO applied, nothing supervised, output to zero
             self.fresh = self.applied_data = None
             out = self.supervisor.tick(None)
-            self.clock.tick()
             write_object(self.node, TORQUE_OFFSET, None, out)
             self._produce_heartbeat(now_s)
             return out
@@ -138,18 +134,15 @@ class Cia402Receiver:
         # a lost SYNC or heartbeat voids the link; a lost RPDO ends with the next one
         fresh = None if self.active_faults - {EMCY_RPDO_TIMEOUT} else self.fresh
         self.fresh = None
-        if fresh and self.clock.outlived(fresh[2], now_s):  # held up before its SYNC
-            refuse_outlived(self.counts)
-            fresh = None
         was_lost = self.supervisor.link_lost
         out = self.supervisor.tick(fresh[0] if fresh else None)
         self.applied_data = fresh[1] if fresh else None
-        self.clock.tick()
         if self.supervisor.link_lost and not was_lost:
-            self.clock.link_lost()
             self._raise_fault(EMCY_RPDO_TIMEOUT)
         elif fresh:
             self.active_faults.discard(EMCY_RPDO_TIMEOUT)
+        if self.clock.expire(self.supervisor.timeout_cycles):
+            self.supervisor.end()  # the session ends with the link: a new request is needed
         write_object(self.node, TORQUE_OFFSET, None, out)
         self._produce_heartbeat(now_s)
         return out

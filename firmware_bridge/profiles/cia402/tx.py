@@ -1,4 +1,4 @@
-"""The compensator side of cia402: RPDO1 each cycle, SYNC as master, its heartbeat."""
+"""The compensator side of cia402: RPDO2 each cycle, SYNC as master, its heartbeat."""
 
 from __future__ import annotations
 
@@ -6,11 +6,13 @@ from typing import Any
 
 import can
 
-from firmware_bridge.profiles.base import SyncCounter
-from firmware_bridge.profiles.cia402.codec import Cia402Codec, load_drive_od
+from firmware_bridge.freshness import DriveTime, Mode
+from firmware_bridge.profiles.base import Claim, SyncCounter
+from firmware_bridge.profiles.cia402.codec import FF_RPDO, Cia402Codec, load_drive_od
 from firmware_bridge.settings import CanConfig
 
 _BOOTUP = b"\x00"  # NMT boot-up: the same COB-ID as the heartbeat, not one
+_TPDO_BYTES = (7, 8)  # the drive's TPDO1 and TPDO2 at every SYNC
 
 
 class Cia402Tx:
@@ -20,6 +22,10 @@ class Cia402Tx:
     ----------
     cfg
         The ``[can]`` section.
+
+    The drive's clock is its count of SYNCs, published in TPDO1 at each SYNC: a frame
+    is stamped with the last count published plus the SYNCs this side saw (or, as
+    SYNC master, sent) since, plus one: the SYNC at which the drive applies it.
     """
 
     def __init__(self, cfg: CanConfig) -> None:
@@ -35,6 +41,7 @@ class Cia402Tx:
         self.follows_sync = not cfg.sync_master
         self.limit_raw = min(self.codec.limit_raw, self.codec.to_raw(cfg.max_current_A))
         self.heartbeat_cycles = max(1, round(cfg.heartbeat_period_s / cfg.cycle_period_s))
+        self.claim = Claim(DriveTime(None, cfg.timeout_cycles + 1))
         self.emcy_received: list[int] = []
         self.drive_heartbeats = 0
         self.sync: SyncCounter | None = SyncCounter()  # SYNCs on the bus, whoever produced them
@@ -43,29 +50,49 @@ class Cia402Tx:
         """Current in A -> per mille of the rated current."""
         return self.codec.to_raw(current_A)
 
-    def frames(self, cycle: int, raw: int) -> tuple[can.Message, list[can.Message]]:
-        """RPDO1 of ``cycle``; then SYNC (as master) and, when due, the heartbeat."""
-        extra = [self.codec.sync_frame()] if self.cfg.sync_master else []
+    def feedforward(self, mode: Mode, raw: int, now_s: float) -> can.Message | None:
+        """RPDO2 stamped with the SYNC it applies at; None before the drive's first TPDO1."""
+        stamp = self.claim.time.stamp(now_s)
+        if stamp is None:
+            return None
+        return self.codec.rpdo_frame(raw, stamp, self.claim.session, mode)
+
+    def extra(self, cycle: int) -> list[can.Message]:
+        """SYNC (as master) after the RPDO; the heartbeat when due."""
+        frames = []
+        if self.cfg.sync_master:
+            frames.append(self.codec.sync_frame())
+            self.claim.time.sync()
         if cycle % self.heartbeat_cycles == 0:
-            extra.append(self.codec.heartbeat_frame())
-        return self.codec.rpdo_frame(raw, cycle), extra
+            frames.append(self.codec.heartbeat_frame())
+        return frames
 
     def traffic(self) -> list[tuple[int, float]]:
-        """RPDO1 (3 bytes) and SYNC every cycle, the heartbeat every heartbeat period.
+        """RPDO2 and SYNC every cycle, the drive's two TPDOs every SYNC, the heartbeat.
 
         SYNC is on the bus whoever produces it: without data from this compensator,
         with the one-byte SYNC counter from the NC (:class:`~.nc.SyncProducer`).
         """
         rate = 1.0 / self.cfg.cycle_period_s
         sync_bytes = 0 if self.cfg.sync_master else 1
-        return [(3, rate), (sync_bytes, rate), (1, 1.0 / self.cfg.heartbeat_period_s)]
+        return [
+            (FF_RPDO.size, rate),
+            (sync_bytes, rate),
+            *((size, rate) for size in _TPDO_BYTES),
+            (1, 1.0 / self.cfg.heartbeat_period_s),
+        ]
 
-    def on_reply(self, msg: can.Message) -> None:
-        """Count SYNCs, the drive's EMCYs and heartbeats."""
+    def on_reply(self, msg: can.Message, now_s: float) -> None:
+        """The drive's TPDO1 (its cycle and session); SYNCs, EMCYs and heartbeats counted."""
         cob_id = msg.arbitration_id
-        if cob_id == self.codec.sync_cob_id:
+        if cob_id == self.codec.status_cob_id:
+            report = self.codec.unpack_status(bytes(msg.data))
+            if report is not None:
+                self.claim.time.observe(report.cycle, report.session, now_s)
+        elif cob_id == self.codec.sync_cob_id:
             assert self.sync is not None
             self.sync.saw(msg.timestamp, bytes(msg.data))
+            self.claim.time.sync()
         elif cob_id == 0x80 + self.cfg.drive_node_id and len(msg.data) >= 2:
             self.emcy_received.append(int.from_bytes(msg.data[:2], "little"))
         elif cob_id == 0x700 + self.cfg.drive_node_id and msg.data[:1] != _BOOTUP:
@@ -74,13 +101,14 @@ class Cia402Tx:
     def stop_frames(self) -> tuple[list[can.Message], str]:
         """As SYNC master: NMT pre-operational to the drive, so silence is no fault.
 
-        Following an NC's SYNC, the NC owns the drive's state: nothing is sent.
+        Following an NC's SYNC, the NC owns the drive's state: the release ends the
+        stream, nothing more is sent.
         """
         if self.follows_sync:
-            return [], "the NC owns the drive's state: the drive sees the RPDOs stop"
+            return [], "session released; the NC owns the drive's state"
         return [self.codec.leave_operation_frame()], (
-            f"NMT pre-operational sent to drive node {self.cfg.drive_node_id}: "
-            "PDOs and their supervision end without a fault"
+            f"session released, NMT pre-operational sent to drive node "
+            f"{self.cfg.drive_node_id}: PDOs and their supervision end without a fault"
         )
 
     def report(self) -> dict[str, Any]:

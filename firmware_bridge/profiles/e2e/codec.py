@@ -2,9 +2,11 @@
 
 The DBC is the single source of truth for the layout, the scaling and the
 E2E data IDs (message attribute ``E2EDataId``). Frames follow the AUTOSAR E2E
-profile 5 layout: CRC-16 in bytes 0..1 over bytes 2..7 and the data ID, an
-8-bit alive counter in byte 2. cantools encodes (``strict=True``, after the
-caller has saturated) and decodes; the CRC equals :mod:`cantools.autosar`'s.
+profile 5 style: CRC-16 in bytes 0..1 over bytes 2..7 and the data ID; in place
+of the 8-bit alive counter, the 16-bit drive cycle (bytes 2..3) by which the drive
+dates the frame (:mod:`firmware_bridge.freshness`), then the session and mode.
+cantools encodes (``strict=True``, after the caller has saturated) and decodes; the
+CRC equals :mod:`cantools.autosar`'s.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import can
 import cantools
 from cantools.database.can import Message
 
-from firmware_bridge.freshness import COUNTER_MODULUS
+from firmware_bridge.freshness import STAMP_MODULUS, Command, Mode
 from firmware_bridge.resources import packaged_path
 from gms_comp.errors import BusError
 
@@ -66,8 +68,9 @@ def default_dbc_path() -> Path:
 class DriveStatus:
     """The drive's status frame, decoded."""
 
-    counter: int
+    cycle: int
     applied_current_A: float
+    session: int
     state: int
     rejected: int
 
@@ -86,16 +89,15 @@ class E2eCodec:
             current = self.command.get_signal_by_name("Current")
             self.command_data_id = _data_id(self.command)
             self.status_data_id = _data_id(self.status)
+            self._ranges = {
+                name: _raw_range(self.command.get_signal_by_name(name))
+                for name in ("Current", "Session", "Mode")
+            }
         except (OSError, KeyError, cantools.database.Error) as err:
             raise BusError(f"{path}: not a usable feedforward DBC ({err})") from err
         self.dbc_path = path
-        if current.minimum is None or current.maximum is None:
-            raise BusError(f"{path}: signal FfCommand.Current needs a minimum and a maximum")
         self.scale_A = float(current.scale)
-        self.raw_range = (
-            round(current.minimum / self.scale_A),
-            round(current.maximum / self.scale_A),
-        )
+        self.raw_range = self._ranges["Current"]
         self.limit_raw = min(-self.raw_range[0], self.raw_range[1])
 
     def to_raw(self, current_A: float) -> int:
@@ -106,44 +108,51 @@ class E2eCodec:
         """The ``Current`` signal's raw value -> current in A."""
         return raw * self.scale_A
 
-    def encode_command(self, counter: int, raw: int) -> bytes:
-        """FfCommand payload with ``counter`` (modulo 256), ``raw`` and its CRC."""
+    def encode_command(self, cycle: int, raw: int, session: int, mode: Mode) -> bytes:
+        """FfCommand payload for drive cycle ``cycle`` (modulo 2**16), with its CRC."""
         data = self.command.encode(
-            {"Crc": 0, "Counter": counter % COUNTER_MODULUS, "Current": raw},
+            {
+                "Crc": 0,
+                "Cycle": cycle % STAMP_MODULUS,
+                "Current": raw,
+                "Session": session,
+                "Mode": int(mode),
+            },
             scaling=False,
             strict=True,
         )
         return _with_crc(data, self.command_data_id)
 
-    def command_frame(self, counter: int, raw: int) -> can.Message:
-        """FfCommand frame with ``counter`` and ``raw``."""
+    def command_frame(self, cycle: int, raw: int, session: int, mode: Mode) -> can.Message:
+        """FfCommand frame (see :meth:`encode_command`)."""
         return can.Message(
             arbitration_id=self.command.frame_id,
-            data=self.encode_command(counter, raw),
+            data=self.encode_command(cycle, raw, session, mode),
             is_extended_id=False,
         )
 
-    def check_command(self, data: bytes) -> tuple[int, int] | None:
-        """``(counter, raw current)`` of an intact, in-range command frame, else None."""
+    def check_command(self, data: bytes) -> Command | None:
+        """The fields of an intact command frame whose values are all in range, else None."""
         if len(data) != self.command.length or not _crc_holds(data, self.command_data_id):
             return None
         fields = _decode_raw(self.command, data)
-        low, high = self.raw_range
-        if not low <= fields["Current"] <= high:  # decoding does no range check
-            return None
-        return fields["Counter"], fields["Current"]
+        for name, (low, high) in self._ranges.items():  # decoding does no range check
+            if not low <= fields[name] <= high:
+                return None
+        return Command(fields["Cycle"], fields["Current"], fields["Session"], Mode(fields["Mode"]))
 
     def status_frame(
-        self, counter: int, applied_raw: int, state: int, rejected: int
+        self, cycle: int, applied_raw: int, session: int, state: int, rejected: int
     ) -> can.Message:
-        """DriveStatus frame of the drive's cycle ``counter``."""
+        """DriveStatus frame of drive cycle ``cycle`` (just run)."""
         data = self.status.encode(
             {
                 "Crc": 0,
-                "Counter": counter % COUNTER_MODULUS,
+                "Cycle": cycle % STAMP_MODULUS,
                 "AppliedCurrent": applied_raw,
+                "Session": session,
                 "State": state,
-                "Rejected": rejected % 256,
+                "Rejected": rejected % 64,
             },
             scaling=False,
             strict=True,
@@ -160,8 +169,15 @@ class E2eCodec:
             return None
         f = _decode_raw(self.status, data)
         return DriveStatus(
-            f["Counter"], self.from_raw(f["AppliedCurrent"]), f["State"], f["Rejected"]
+            f["Cycle"], self.from_raw(f["AppliedCurrent"]), f["Session"], f["State"], f["Rejected"]
         )
+
+
+def _raw_range(signal: Any) -> tuple[int, int]:
+    if signal.minimum is None or signal.maximum is None:
+        raise cantools.database.Error(f"signal {signal.name} needs a minimum and a maximum")
+    scale = float(signal.scale)
+    return round(signal.minimum / scale), round(signal.maximum / scale)
 
 
 def _data_id(message: Message) -> int:

@@ -9,7 +9,7 @@ from firmware_bridge.profiles.e2e.receiver import E2eReceiver
 from firmware_bridge.settings import CanConfig
 from firmware_bridge.supervisor import RejectCounts, Supervisor, Verdict
 
-STATE_NAMES = ("resync", "active", "hold", "fallback")  # the DBC's DriveStatus.State
+STATE_NAMES = ("waiting", "active", "hold", "fallback")  # the DBC's DriveStatus.State
 
 
 class E2eDrive:
@@ -29,7 +29,7 @@ class E2eDrive:
         codec = E2eCodec()
         limit = min(codec.limit_raw, codec.to_raw(cfg.max_current_A))
         supervisor = Supervisor(limit, cfg.timeout_cycles, cfg.ramp_cycles)
-        self.receiver = E2eReceiver(codec, supervisor, cfg.max_frame_age_cycles, cfg.cycle_period_s)
+        self.receiver = E2eReceiver(codec, supervisor, cfg.max_frame_age_cycles)
 
     @property
     def counts(self) -> RejectCounts:
@@ -39,23 +39,28 @@ class E2eDrive:
     def handle(self, msg: can.Message, now_s: float) -> None:
         """Check FfCommand frames; an error frame counts as a corrupt one."""
         if msg.arbitration_id == self.receiver.codec.command.frame_id:
-            self.receiver.on_frame(bytes(msg.data), now_s)
+            self.receiver.on_frame(bytes(msg.data))
         elif msg.is_error_frame:
             self.receiver.counts.add(Verdict.CORRUPT)
 
     def set_real_time(self, real_time: bool) -> None:
-        """Run on the drive's own clock (True) or stepped (False)."""
-        self.receiver.set_real_time(real_time)
+        """Nothing to set: the drive's cycle dates every frame, stepped or in real time."""
 
     def tick(self, now_s: float, cycle: int) -> tuple[int, bytes | None]:
-        """One drive cycle; sends the status frame every ``status_every_cycles``."""
-        out = self.receiver.tick(now_s)  # may still refuse the fresh frame by its stamp
-        fresh = self.receiver.fresh_data
-        self.receiver.fresh_data = None
-        if cycle % self.cfg.status_every_cycles == 0:
-            rejected = self.counts.total_rejected
+        """One drive cycle; then the status frame (every ``status_every_cycles``)."""
+        receiver = self.receiver
+        fresh = receiver.fresh_data
+        receiver.fresh_data = None
+        out = receiver.tick()
+        if receiver.last_cycle % self.cfg.status_every_cycles == 0:
             self.bus.send(
-                self.receiver.codec.status_frame(cycle, out, self.receiver.state, rejected)
+                receiver.codec.status_frame(
+                    receiver.last_cycle,
+                    out,
+                    receiver.clock.session,
+                    receiver.state,
+                    self.counts.total_rejected,
+                )
             )
         return out, fresh
 
