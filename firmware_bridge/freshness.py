@@ -1,14 +1,14 @@
 """When a frame may be applied: the drive's cycle as the one clock, sessions as the one claim.
 
-A frame is dated by the **drive's own cycle**, which the drive publishes with every
-status frame (e2e: ``DriveStatus.Cycle``; cia402: object 0x2002 in its TPDO at each
-SYNC, the drive cycle being its count of SYNCs). The compensator never invents a
-date: it stamps each feedforward frame with the drive cycle at which the frame is
-meant to be applied, computed from the last cycle the drive published plus the
-cycles it has *seen pass since* (cia402: the SYNCs after that TPDO; e2e: whole periods
-of its own clock since it handled that status frame, at most
-``horizon_cycles``) plus one (:class:`DriveTime`). Both terms can only lag
-the truth: a published cycle is already over when it arrives, and a delay of the
+A frame is dated by the **drive's own cycle** (its count of control ticks, on its own
+clock), which the drive publishes with every status frame (e2e: ``DriveStatus.Cycle``,
+the tick just run; cia402: object 0x2002 in its TPDO at each SYNC, the tick that
+SYNC's RPDOs apply at). The compensator never invents a date: it stamps each
+feedforward frame with the drive cycle at which the frame is meant to be applied,
+computed from the last cycle the drive published plus the cycles it has *seen pass
+since* (cia402: the SYNCs after that TPDO, one a cycle at most; e2e: whole periods of
+its own clock since it handled that status frame, at most ``horizon_cycles``) plus one
+(:class:`DriveTime`). Both terms can only lag the truth: a published cycle is already over when it arrives, and a delay of the
 status frame, of the SYNC or of the feedforward frame itself only makes the frame
 look *older* to the drive. So no delay, however long or steady, can make a late frame
 look fresh, and there is nothing to re-anchor (the receiver keeps no correspondence

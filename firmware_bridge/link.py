@@ -4,6 +4,8 @@ Each :meth:`CanFeedforwardLink.transfer` runs one control cycle: the streamer
 encodes and sends the feedforward (through the fault injector, if faults are
 given), then the drive emulator drains the bus and runs its drive cycle. The
 returned current is what the drive applies this cycle, quantised by the frame.
+Entering the link connects first (the drive grants the session, a few cycles
+without current), as a compensator does before the machine moves.
 
 Example
 -------
@@ -67,9 +69,15 @@ class CanFeedforwardLink:
         period = servo_period_s if servo_period_s is not None else self.cfg.cycle_period_s
         self.calls_per_frame = max(1, round(self.cfg.cycle_period_s / period))
         self._applied_A = 0.0
+        self._first_cycle = 0
 
     def __enter__(self) -> CanFeedforwardLink:
         self._rig = Rig(self.cfg, self.faults, self.seed)
+        try:
+            self._first_cycle = self._rig.connect()  # before the motion, as on a machine
+        except BaseException:
+            self.close()
+            raise
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -91,7 +99,8 @@ class CanFeedforwardLink:
     def transfer(self, cycle: int, current_A: float) -> float:
         """Send ``current_A`` in servo cycle ``cycle``; the feedforward the drive applies now."""
         if cycle % self.calls_per_frame == 0:
-            self._applied_A = self.rig.step(cycle // self.calls_per_frame, current_A)
+            can_cycle = self._first_cycle + cycle // self.calls_per_frame
+            self._applied_A = self.rig.step(can_cycle, current_A)
         return self._applied_A
 
     def report(self) -> dict[str, Any]:

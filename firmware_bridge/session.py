@@ -52,6 +52,7 @@ FeedforwardSource = Callable[[float], float]  # time in s -> feedforward current
 CHANNEL_CHECK_S = 0.02  # listen this long (at least 10 cycles) for another compensator
 FIRST_SYNC_WAIT_S = 2.0  # a follower waits this long for the NC's first SYNC
 SYNC_GONE_S = 0.5  # ... and ends the stream when SYNC stops for this long
+CONNECT_CYCLES = 10  # the handshake takes 3 cycles, 4 for a SYNC follower
 
 
 class Rig:
@@ -150,6 +151,30 @@ class Rig:
             self.streamer.cycle(cycle, current_A, now_s)
         if self.streamer.taken is not None:
             raise ChannelTakenError(self.streamer.taken)
+
+    def connect(self, limit_cycles: int = CONNECT_CYCLES) -> int:
+        """Stepped mode: run cycles without current until the drive grants the session.
+
+        The drive publishes its cycle, the compensator requests the session, the drive
+        grants it (:mod:`firmware_bridge.freshness`); the cycle that first sees the grant
+        sends a command of 0 A. Returns the next cycle's index.
+
+        Raises
+        ------
+        BusError
+            If the drive has not granted the session within ``limit_cycles``.
+        """
+        cycle = 0
+        while not self.tx.claim.granted:
+            if cycle >= limit_cycles:
+                raise BusError(
+                    f"drive node {self.cfg.drive_node_id} did not grant the feedforward "
+                    f"session within {limit_cycles} cycles (is it on {self.cfg.interface} "
+                    f"channel {self.cfg.channel!r}?)"
+                )
+            self.step(cycle, None)
+            cycle += 1
+        return cycle
 
     def step(self, cycle: int, current_A: float | None) -> float:
         """Stepped mode: one control cycle and one drive cycle; the applied current."""

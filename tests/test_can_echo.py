@@ -24,7 +24,10 @@ def test_own_echoes_are_not_foreign_but_another_nodes_frames_are(profile: str) -
         tx = make_tx(cfg)
         streamer = Streamer(cfg, ours, tx)
         for cycle in range(20):
-            streamer.cycle(cycle, 0.1, now_s=cycle * cfg.cycle_period_s)
+            now_s = cycle * cfg.cycle_period_s
+            # the drive's status: its cycle, and the session granted to this compensator
+            tx.claim.time.observe(cycle, tx.claim.session, now_s)
+            streamer.cycle(cycle, 0.1, now_s=now_s)
         streamer.drain_replies()
         assert streamer.frames_sent == 20
         assert streamer.foreign_frames == 0

@@ -22,6 +22,9 @@ from gms_comp.errors import BusError
 
 PROFILES = ("cia402", "e2e")
 CYCLES = 400
+# The start (firmware_bridge.freshness): cycle 0 only tells the compensator the drive's
+# cycle, cycle 1 carries its request for the session, granted at once; commands from 2.
+FIRST_COMMAND = 2
 _channels = itertools.count()
 
 
@@ -56,8 +59,9 @@ def test_clean_link_applies_every_frame_quantised(profile: str) -> None:
     rig, applied = run(profile)
     report = rig.report()
     assert sum(report["frames_rejected"].values()) == 0
-    first = 1  # the first frame ever sets the counter reference (firmware_bridge.freshness)
+    first = FIRST_COMMAND
     assert report["frames_applied"] == CYCLES - first
+    assert report["sessions_granted"] == 1
     step = 1e-4 if profile == "e2e" else 2.0 / 1000
     for k in range(first, CYCLES):
         assert applied[k] == pytest.approx(max(-1.0, min(1.0, wave(k))), abs=step / 2 + 1e-12)
@@ -150,7 +154,11 @@ def test_follower_mode_applies_one_cycle_later() -> None:
     cfg = replace(config("cia402"), sync_master=False)
     with Rig(cfg) as rig:
         applied = [rig.step(k, 0.002 * k) for k in range(10)]
-    assert applied[1:] == pytest.approx([0.002 * (k - 1) for k in range(1, 10)])
+    # each step of the handshake waits for the next SYNC as well: commands from cycle 3,
+    # applied one cycle later
+    start = FIRST_COMMAND + 1
+    assert applied[: start + 1] == [0.0] * (start + 1)
+    assert applied[start + 1 :] == pytest.approx([0.002 * (k - 1) for k in range(start + 1, 10)])
 
 
 def test_faults_need_a_valid_spec() -> None:

@@ -22,9 +22,8 @@ def test_link_equals_direct_path_within_quantisation(profile: str) -> None:
     wanted = currents(300)
     with CanFeedforwardLink(profile=profile) as link:
         applied = [link.transfer(k, i) for k, i in enumerate(wanted)]
-    start = 1  # the first frame ever only sets the counter reference
-    assert applied[:start] == [0.0] * start
-    err = max(abs(a - w) for a, w in zip(applied[start:], wanted[start:], strict=True))
+    # the link connected before the first transfer: every value applied in its own cycle
+    err = max(abs(a - w) for a, w in zip(applied, wanted, strict=True))
     assert err <= QUANTUM_A[profile] / 2 + 1e-12
 
 
@@ -33,10 +32,9 @@ def test_link_satisfies_the_sim_protocol() -> None:
 
     with CanFeedforwardLink() as link:
         typed: FeedforwardLink = link  # structural: checked by mypy
-        # The first frame sets the counter reference; cia402 applies each later frame
-        # in its own cycle: 0.1 A arrives within half a quantum.
-        assert typed.transfer(0, 0.1) == 0.0
-        assert typed.transfer(1, 0.1) == pytest.approx(0.1, abs=QUANTUM_A["cia402"] / 2)
+        # connected on entry: cia402 applies each frame in its own cycle, 0.1 A
+        # within half a quantum
+        assert typed.transfer(0, 0.1) == pytest.approx(0.1, abs=QUANTUM_A["cia402"] / 2)
 
 
 def test_faster_servo_loop_gets_a_frame_per_can_cycle_and_holds_between() -> None:
@@ -44,9 +42,8 @@ def test_faster_servo_loop_gets_a_frame_per_can_cycle_and_holds_between() -> Non
     with CanFeedforwardLink(cfg, servo_period_s=2.5e-4) as link:
         applied = [link.transfer(k, 0.01 * (k // 4) + 0.1) for k in range(16)]
         sent = link.report()["frames_sent"]
-    assert sent == 4
-    # the first frame only sets the counter reference
-    assert applied == pytest.approx([0.0] * 4 + [0.11] * 4 + [0.12] * 4 + [0.13] * 4, abs=1e-3)
+    assert sent == 1 + 4  # the connection's 0 A command, then one per CAN cycle
+    assert applied == pytest.approx([0.1] * 4 + [0.11] * 4 + [0.12] * 4 + [0.13] * 4, abs=1e-3)
 
 
 def test_links_side_by_side_do_not_hear_each_other() -> None:
@@ -54,7 +51,8 @@ def test_links_side_by_side_do_not_hear_each_other() -> None:
         for k in range(20):
             a.transfer(k, 0.2)
             b.transfer(k, -0.2)
-        assert a.report()["frames_applied"] == b.report()["frames_applied"] == 19
+        # 20 each, plus the 0 A command that ended each link's connection
+        assert a.report()["frames_applied"] == b.report()["frames_applied"] == 21
         assert a.rig.drive.applied_current_A == pytest.approx(0.2)
 
 

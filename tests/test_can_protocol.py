@@ -11,6 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from firmware_bridge.busload import bus_load, check_bus_load, frame_bits_worst_case
+from firmware_bridge.freshness import Command, Mode
 from firmware_bridge.profiles.cia402.codec import Cia402Codec, load_drive_od
 from firmware_bridge.profiles.e2e.codec import E2eCodec
 from firmware_bridge.settings import CanConfig, load_can_config
@@ -43,9 +44,20 @@ def test_e2e_at_2_5_kHz_fits_alone_but_not_with_background_traffic() -> None:
 def test_cia402_scaling_is_per_mille_of_rated_current() -> None:
     codec = Cia402Codec(CanConfig(rated_current_A=2.0), load_drive_od(1))
     assert codec.to_raw(0.5) == 250
-    # 0x60B2 INTEGER16 little-endian, then the alive counter 0x2001 (cycle modulo 256)
-    assert codec.rpdo_frame(-250, 258).data == (-250).to_bytes(2, "little", signed=True) + b"\x02"
-    assert codec.rpdo_cob_id == 0x201 and codec.sync_cob_id == 0x80
+    # 0x60B2 INTEGER16 little-endian, the drive cycle 0x2001 (UNSIGNED16, modulo 2**16),
+    # the session 0x2003 and the mode 0x2004 (one byte each)
+    data = codec.rpdo_frame(-250, 65536 + 258, 7, Mode.REQUEST).data
+    assert data == (-250).to_bytes(2, "little", signed=True) + b"\x02\x01" + b"\x07\x01"
+    assert codec.unpack_rpdo(bytes(data)) == Command(258, -250, 7, Mode.REQUEST)
+    assert codec.rpdo_cob_id == 0x301 and codec.sync_cob_id == 0x80
+    assert codec.nc_cob_id == 0x201 and codec.status_cob_id == 0x181
+
+
+@pytest.mark.parametrize(
+    "data", [b"\x00\x00\x01\x00\x00\x00", b"\x00\x00\x01\x00\x07\x03", b"\x00" * 5]
+)
+def test_cia402_rpdo_without_session_bad_mode_or_length_is_refused(data: bytes) -> None:
+    assert Cia402Codec.unpack_rpdo(data) is None
 
 
 def test_eds_rpdo_must_map_torque_offset(tmp_path: Path) -> None:
@@ -57,19 +69,24 @@ def test_eds_rpdo_must_map_torque_offset(tmp_path: Path) -> None:
         Cia402Codec(CanConfig(), load_drive_od(1, bad))
 
 
-@given(st.integers(0, 255), st.integers(-32767, 32767))
-def test_e2e_command_round_trip_and_crc(counter: int, raw: int) -> None:
+@given(
+    st.integers(0, 2**16 - 1),
+    st.integers(-32767, 32767),
+    st.integers(1, 255),
+    st.sampled_from(list(Mode)),
+)
+def test_e2e_command_round_trip_and_crc(cycle: int, raw: int, session: int, mode: Mode) -> None:
     codec = E2eCodec()
-    data = codec.encode_command(counter, raw)
+    data = codec.encode_command(cycle, raw, session, mode)
     assert len(data) == 8
     assert check_profile5_crc(data, codec.command_data_id)
-    assert codec.check_command(data) == (counter, raw)
+    assert codec.check_command(data) == Command(cycle, raw, session, mode)
 
 
-@given(st.integers(0, 63), st.integers(0, 255))
-def test_any_single_bit_flip_is_detected(bit: int, counter: int) -> None:
+@given(st.integers(0, 63), st.integers(0, 2**16 - 1))
+def test_any_single_bit_flip_is_detected(bit: int, cycle: int) -> None:
     codec = E2eCodec()
-    data = bytearray(codec.encode_command(counter, 1234))
+    data = bytearray(codec.encode_command(cycle, 1234, 9, Mode.COMMAND))
     data[bit // 8] ^= 1 << (bit % 8)
     assert codec.check_command(bytes(data)) is None
 
@@ -84,7 +101,7 @@ def test_encoding_out_of_range_is_refused_by_cantools_strict() -> None:
     from cantools.database.errors import EncodeError
 
     with pytest.raises(EncodeError):
-        E2eCodec().encode_command(0, 40000)
+        E2eCodec().encode_command(0, 40000, 1, Mode.COMMAND)
 
 
 @given(st.floats(-100, 100, allow_nan=False))
@@ -93,7 +110,8 @@ def test_shaper_saturates_before_encoding(current_A: float) -> None:
     tx = make_tx(cfg)
     raw = Shaper(tx.limit_raw, cfg.ramp_cycles).step(tx.to_raw(current_A))
     assert abs(raw) <= 10000  # 1 A in 0.1 mA
-    tx.frames(0, raw)  # encodes with strict=True without raising
+    tx.claim.time.observe(0, tx.claim.session, 0.0)
+    assert tx.feedforward(Mode.COMMAND, raw, 0.0) is not None  # strict=True did not raise
 
 
 def test_shaper_ramps_to_zero_within_ramp_time_without_jumps() -> None:

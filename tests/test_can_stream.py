@@ -81,7 +81,7 @@ def test_stream_logs_frames_to_blf(tmp_path: Path) -> None:
     assert code == 0
     with can.BLFReader(str(log)) as reader:
         ids = {msg.arbitration_id for msg in reader}
-    assert {0x201, 0x80} <= ids  # RPDO1 of node 1 and SYNC
+    assert {0x301, 0x80, 0x181} <= ids  # RPDO2 of node 1, SYNC, the drive's TPDO1
 
 
 def test_bad_fault_spec_is_one_line_and_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
@@ -120,7 +120,7 @@ def test_second_compensator_on_the_channel_is_refused(
         other.join()
     err = capsys.readouterr().err
     assert code == 2
-    assert "another node" in err and err.count("\n") == 1
+    assert "one compensator per drive" in err and err.count("\n") == 1
     assert reports[0]["stale_or_corrupt_applied"] == 0  # the first one was not disturbed
 
 
@@ -136,7 +136,7 @@ def test_json_flag_prints_only_json_and_a_clean_stop_raises_no_fault(
     assert code == 0 and report == json.loads(out.read_text())
     assert f"wrote {out}" in captured.err
     # the stream ends in order: the drive is not left faulted by the end of the stream
-    assert report["drive_state"] == ("pre_operational" if profile == "cia402" else "resync")
+    assert report["drive_state"] == ("pre_operational" if profile == "cia402" else "waiting")
     assert report["end_of_stream"].startswith("ramped to 0 A")
 
 
@@ -147,7 +147,7 @@ def test_summary_on_stdout_says_how_the_stream_ended(
     text = capsys.readouterr().out
     assert code == 0
     assert "streamed" in text and "stale or corrupt applied: 0" in text
-    assert "end: ramped to 0 A; NMT pre-operational" in text
+    assert "end: ramped to 0 A; session released, NMT pre-operational" in text
     assert "drive state at the end: pre_operational" in text
 
 

@@ -139,10 +139,10 @@ def test_a_follower_behind_answers_the_latest_sync_only() -> None:
         def recv(self, timeout: float | None = None) -> can.Message | None:
             return queued.pop(0) if queued else None
 
-    class Tx:
-        def on_reply(self, msg: can.Message) -> None:
+    class Streamer:
+        def take_reply(self, msg: can.Message, now_s: float) -> None:
             sync.saw(0.0, bytes(msg.data))
 
-    rig = SimpleNamespace(faulty=Faulty(), tx=Tx())
+    rig = SimpleNamespace(faulty=Faulty(), streamer=Streamer())
     assert session._await_sync(rig, sync, 0, 1.0, time.monotonic)  # type: ignore[arg-type]
     assert (sync.seen, sync.last_counter) == (3, 7)

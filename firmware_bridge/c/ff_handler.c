@@ -5,27 +5,19 @@
 
 #include "gms_ff.h"
 
-#define COUNTER_MODULUS 256u
-#define MAX_EARLY_CYCLES 64   /* COUNTER_MODULUS / 4, firmware_bridge.freshness */
-#define REANCHOR_FRAMES 16u   /* firmware_bridge.freshness.REANCHOR_FRAMES */
+enum { MODE_COMMAND = 0, MODE_REQUEST = 1, MODE_RELEASE = 2 }; /* FfCommand.Mode */
 
 struct ff_handler {
     struct ff_config cfg;
-    /* frame dating, as firmware_bridge.freshness.FrameClock */
-    bool anchored;
-    uint8_t cycle;  /* drive cycles, modulo 256 */
-    uint8_t offset; /* drive cycle minus counter of a frame of age 0 */
+    /* dating and session, as firmware_bridge.freshness.DriveClock */
+    uint16_t cycle;      /* the tick a frame judged now applies at */
+    uint16_t last_cycle; /* the tick just run */
+    uint8_t session;     /* held session, 0: none */
     bool has_last;
-    uint8_t last_counter;
-    uint32_t last_age; /* age of the last accepted frame, counted up without wrapping */
-    uint8_t late_offset;
-    uint8_t late_counter;
-    uint32_t late_run;
-    bool has_origin;
-    uint32_t origin_us; /* slot of counter 0: earliest reception - counter x cycle */
+    uint16_t last_stamp; /* newest stamp taken in the held session */
+    uint32_t idle_cycles;
+    /* the value to apply, as firmware_bridge.supervisor.Supervisor */
     bool has_fresh;
-    bool fresh_timed;
-    uint32_t fresh_sent_us; /* earliest the fresh frame can have left */
     int16_t fresh_raw;
     int16_t output_raw;
     uint32_t cycles_since_fresh;
@@ -63,106 +55,59 @@ void ff_init(struct ff_handler *h, const struct ff_config *cfg)
     h->link_lost = true;
 }
 
-/* a difference of counters/cycles modulo 256, as a signed number in [-128, 127] */
-static int32_t signed_diff(uint32_t value)
+/* a - b modulo 2^16, as a signed number in [-32768, 32767] */
+static int32_t stamp_diff(uint16_t a, uint16_t b) { return (int32_t)(int16_t)(uint16_t)(a - b); }
+
+static void release(struct ff_handler *h)
 {
-    value %= COUNTER_MODULUS;
-    return value >= COUNTER_MODULUS / 2u ? (int32_t)value - (int32_t)COUNTER_MODULUS
-                                         : (int32_t)value;
+    h->session = 0u;
+    h->has_last = false;
 }
 
-/* slot of the counter step nearest rx_us (the counter unwrapped by time) */
-static uint32_t slot_us(const struct ff_handler *h, uint8_t counter, uint32_t rx_us)
+/* firmware_bridge.freshness.DriveClock.judge */
+static enum ff_verdict judge(struct ff_handler *h, uint16_t stamp, uint8_t session, uint8_t mode)
 {
-    int64_t cycle = (int64_t)h->cfg.cycle_us;
-    int64_t span = (int64_t)COUNTER_MODULUS * cycle;
-    int64_t x = (int64_t)(int32_t)(rx_us - h->origin_us) - (int64_t)counter * cycle;
-    int64_t shifted = x + span / 2;
-    int64_t wraps = shifted >= 0 ? shifted / span : -((-shifted + span - 1) / span);
-    return h->origin_us + (uint32_t)(((int64_t)counter + wraps * COUNTER_MODULUS) * cycle);
-}
-
-/* freshness.FrameClock._set_origin */
-static void set_origin(struct ff_handler *h, uint8_t counter, const uint32_t *rx_us,
-                       bool earlier_only)
-{
-    if (rx_us == NULL || h->cfg.cycle_us == 0u) {
-        return;
+    int32_t age = stamp_diff(h->cycle, stamp);
+    if (age < 0) {
+        return FF_EARLY;
     }
-    if (!h->has_origin || !earlier_only) {
-        h->origin_us = *rx_us - (uint32_t)counter * h->cfg.cycle_us;
-        h->has_origin = true;
-        return;
+    if ((uint32_t)age > h->cfg.max_age_cycles) {
+        return FF_STALE;
     }
-    uint32_t slot = slot_us(h, counter, *rx_us);
-    if ((int32_t)(*rx_us - slot) < 0) {
-        h->origin_us -= slot - *rx_us;
+    if (session == 0u || (h->session != 0u && h->session != session)) {
+        return FF_FOREIGN;
     }
-}
-
-static void anchor(struct ff_handler *h, uint8_t counter, const uint32_t *rx_us)
-{
-    set_origin(h, counter, rx_us, false);
-    h->anchored = true;
-    h->offset = (uint8_t)(h->cycle - counter);
-    h->has_last = true;
-    h->last_counter = counter;
-    h->last_age = 0u;
-    h->late_run = 0u;
-}
-
-/* a frame outside the validity window; a steady run of them re-anchors */
-static enum ff_verdict late(struct ff_handler *h, uint8_t counter, const uint32_t *rx_us)
-{
-    uint8_t offset = (uint8_t)(h->cycle - counter);
-    bool steady = h->late_run > 0u && offset == h->late_offset
-                  && (uint8_t)(counter - h->late_counter) == 1u;
-    h->late_run = steady ? inc_saturating(h->late_run) : 1u;
-    h->late_offset = offset;
-    h->late_counter = counter;
-    if (h->late_run >= REANCHOR_FRAMES) {
-        anchor(h, counter, rx_us);
-        return FF_RESYNC;
+    if (mode == MODE_REQUEST) {
+        if (h->session == 0u) {
+            h->session = session;
+            h->has_last = false;
+        }
+        h->idle_cycles = 0u;
+        return FF_GRANTED;
     }
-    return FF_STALE;
-}
-
-/* firmware_bridge.freshness.FrameClock.judge */
-static enum ff_verdict judge(struct ff_handler *h, uint8_t counter, const uint32_t *rx_us)
-{
-    if (!h->anchored) {
-        anchor(h, counter, rx_us);
-        return FF_RESYNC;
+    if (h->session == 0u) {
+        return FF_FOREIGN;
     }
-    /* order against the last accepted frame while it is itself fresh; once it is
-     * older than the window, any frame older still is stale by its age anyway */
-    if (h->has_last && h->last_age <= h->cfg.max_age_cycles) {
-        uint32_t delta = ((uint32_t)counter - h->last_counter) % COUNTER_MODULUS;
-        if (delta == 0u) {
+    if (h->has_last) {
+        int32_t newer = stamp_diff(stamp, h->last_stamp);
+        if (newer == 0) {
             return FF_DUPLICATE;
         }
-        if (delta >= COUNTER_MODULUS / 2u) {
+        if (newer < 0) {
             return FF_OUT_OF_ORDER;
         }
     }
-    /* age in drive cycles; fresh if age <= max_age_cycles (boundary included) */
-    int32_t age = signed_diff((uint32_t)h->cycle - counter - h->offset);
-    if (age > (int32_t)h->cfg.max_age_cycles || age < -MAX_EARLY_CYCLES) {
-        return late(h, counter, rx_us);
+    if (mode == MODE_RELEASE) {
+        release(h);
+        return FF_RELEASED;
     }
-    if (age < 0) { /* the anchor came from a late frame: this one is earlier */
-        h->offset = (uint8_t)(h->offset + age);
-    }
-    set_origin(h, counter, rx_us, true);
-    h->late_run = 0u;
     h->has_last = true;
-    h->last_counter = counter;
-    h->last_age = age < 0 ? 0u : (uint32_t)age;
+    h->last_stamp = stamp;
+    h->idle_cycles = 0u;
     return FF_ACCEPTED;
 }
 
-static enum ff_verdict classify(struct ff_handler *h, const uint8_t *data, size_t size,
-                                const uint32_t *rx_us)
+static enum ff_verdict classify(struct ff_handler *h, const uint8_t *data, size_t size)
 {
     struct gms_ff_ff_command_t msg;
 
@@ -173,38 +118,27 @@ static enum ff_verdict classify(struct ff_handler *h, const uint8_t *data, size_
         return FF_CORRUPT;
     }
     /* the generated unpack does no range check: the firmware must */
-    if (!gms_ff_ff_command_current_is_in_range(msg.current)) {
+    if (!gms_ff_ff_command_current_is_in_range(msg.current)
+        || !gms_ff_ff_command_session_is_in_range(msg.session)
+        || !gms_ff_ff_command_mode_is_in_range(msg.mode)) {
         return FF_CORRUPT;
     }
-    enum ff_verdict verdict = judge(h, msg.counter, rx_us);
+    enum ff_verdict verdict = judge(h, msg.cycle, msg.session, msg.mode);
     if (verdict == FF_ACCEPTED) {
         h->has_fresh = true;
         h->fresh_raw = msg.current;
-        h->fresh_timed = rx_us != NULL && h->has_origin;
-        if (h->fresh_timed) { /* freshness.FrameClock.sent_by */
-            uint32_t early = slot_us(h, msg.counter, *rx_us) - h->cfg.slot_margin_us;
-            h->fresh_sent_us = (int32_t)(early - *rx_us) < 0 ? early : *rx_us;
-        }
+    } else if (verdict == FF_RELEASED) {
+        h->has_fresh = false;
+        h->link_lost = true; /* Supervisor.end: ramp to zero from the next tick */
     }
     return verdict;
 }
 
-static int on_frame(struct ff_handler *h, const uint8_t *data, size_t size,
-                    const uint32_t *rx_us)
-{
-    enum ff_verdict verdict = classify(h, data, size, rx_us);
-    h->counts[verdict] = inc_saturating(h->counts[verdict]);
-    return (int)verdict;
-}
-
 int ff_on_frame(struct ff_handler *h, const uint8_t *data, size_t size)
 {
-    return on_frame(h, data, size, NULL);
-}
-
-int ff_on_frame_at(struct ff_handler *h, const uint8_t *data, size_t size, uint32_t rx_us)
-{
-    return on_frame(h, data, size, &rx_us);
+    enum ff_verdict verdict = classify(h, data, size);
+    h->counts[verdict] = inc_saturating(h->counts[verdict]);
+    return (int)verdict;
 }
 
 static int16_t saturate(int16_t value, int16_t limit)
@@ -220,25 +154,8 @@ static int16_t toward_zero(int16_t value, int32_t step)
     return (int16_t)(-value > step ? value + step : 0);
 }
 
-/* the rule by time (freshness.FrameClock.outlived): too old to apply at now_us? */
-static bool outlived(const struct ff_handler *h, uint32_t now_us)
+int16_t ff_tick(struct ff_handler *h)
 {
-    int64_t age_us = (int64_t)(int32_t)(now_us - h->fresh_sent_us);
-    int64_t limit_us = ((int64_t)h->cfg.max_age_cycles + (int64_t)h->cfg.transport_cycles)
-                       * (int64_t)h->cfg.cycle_us;
-    return age_us > limit_us;
-}
-
-static int16_t tick(struct ff_handler *h, const uint32_t *now_us)
-{
-    bool was_lost = h->link_lost;
-
-    if (h->has_fresh && h->fresh_timed && now_us != NULL && outlived(h, *now_us)) {
-        h->counts[FF_ACCEPTED]--; /* accepted by the counter, refused by time: stale */
-        h->counts[FF_STALE] = inc_saturating(h->counts[FF_STALE]);
-        h->has_fresh = false;
-    }
-
     if (h->has_fresh) {
         h->cycles_since_fresh = 0;
         h->link_lost = false;
@@ -254,20 +171,28 @@ static int16_t tick(struct ff_handler *h, const uint32_t *now_us)
             h->output_raw = toward_zero(h->output_raw, step);
         }
     }
-    h->has_fresh = false; /* a frame is applied in the cycle after its reception or never
-                           * (the reception part of the rule by time, see ff_handler.h) */
-    h->fresh_timed = false;
-    h->cycle = (uint8_t)(h->cycle + 1u);
-    h->last_age = inc_saturating(h->last_age);
-    if (h->link_lost && !was_lost) {
-        h->has_last = false; /* any newer frame may follow an outage; the anchor stays */
+    h->has_fresh = false;
+    if (h->session != 0u && h->idle_cycles > h->cfg.timeout_cycles) {
+        release(h); /* the link is lost: a new request is needed */
+        h->link_lost = true;
     }
+    h->last_cycle = h->cycle;
+    h->cycle = (uint16_t)(h->cycle + 1u);
+    h->idle_cycles = inc_saturating(h->idle_cycles);
     return h->output_raw;
 }
 
-int16_t ff_tick(struct ff_handler *h) { return tick(h, NULL); }
+uint16_t ff_last_cycle(const struct ff_handler *h) { return h->last_cycle; }
 
-int16_t ff_tick_at(struct ff_handler *h, uint32_t now_us) { return tick(h, &now_us); }
+uint8_t ff_session(const struct ff_handler *h) { return h->session; }
+
+int ff_state(const struct ff_handler *h)
+{
+    if (h->link_lost) {
+        return h->output_raw != 0 ? FF_FALLBACK : FF_WAITING;
+    }
+    return h->cycles_since_fresh == 0u ? FF_ACTIVE : FF_HOLD;
+}
 
 uint32_t ff_count(const struct ff_handler *h, int verdict)
 {

@@ -4,24 +4,25 @@
  * Frame layout, scaling and data IDs come from firmware_bridge/gms_ff.dbc; the
  * pack/unpack code (gms_ff.h, gms_ff.c) is generated from it with
  *     cantools generate_c_source gms_ff.dbc
- * This file adds what the generator does not: the CRC, the alive counter
- * checks, the dating of each frame by its counter (firmware_bridge/freshness.py:
- * stale = older than max_age_cycles, boundary included), the range check, and the watchdog that ramps the feedforward to zero
- * when frames stop. The rules match firmware_bridge/profiles/e2e/receiver.py (E2eReceiver) and
- * firmware_bridge/supervisor.py (Supervisor) exactly; the tests feed both the
- * same vectors.
+ * This file adds what the generator does not: the CRC, the range checks, the
+ * dating of each frame by the drive's own cycle, the session, and the watchdog that
+ * ramps the feedforward to zero when frames stop. The rules are
+ * firmware_bridge/freshness.py (DriveClock), firmware_bridge/profiles/e2e/receiver.py
+ * (E2eReceiver) and firmware_bridge/supervisor.py (Supervisor), exactly; the tests
+ * feed both the same random sequences.
  *
- * Freshness has a second rule in firmware_bridge/freshness.py, by time: a drive
- * refuses a frame whose (apply time - sent) / period - transport exceeds
- * max_age_cycles, transport being 1 for a drive on its own clock, and "sent" the
- * earliest the frame can have left: its reception, or its slot (the reception of
- * the earliest frame since the anchor, relative to its counter, advanced one
- * period per counter step) less a margin, whichever is earlier. The counter alone
- * cannot tell a frame that left just before the drive's tick of its cycle and was
- * held on the way from one that left just after it. ff_on_frame_at / ff_tick_at
- * take the controller's timer in microseconds (reception timestamp, start of the
- * cycle) and apply the rule; ff_on_frame / ff_tick date by the counter alone (the
- * frame is applied by the very next tick or never, so the reception part holds).
+ * Dating: the drive counts its control ticks (16 bits) and publishes the tick just run
+ * in DriveStatus.Cycle (ff_last_cycle). A compensator stamps each frame with the tick it
+ * is meant to apply at, from that published cycle and the time passed since: a frame
+ * stamped s is fresh at tick n if 0 <= n - s <= max_age_cycles (modulo 2^16, boundary
+ * included); n - s < 0 is early. A delay can only make a frame look older: there is no
+ * counter to anchor, nothing to re-anchor.
+ *
+ * Session: the handler takes commands from one compensator at a time, whose id it
+ * announces in DriveStatus.Session (ff_session): it grants the first fresh request
+ * (Mode 1) while it holds none, refuses frames of any other session (foreign), and
+ * releases the session on a fresh release frame (Mode 2) or when no granted request or
+ * accepted command of it has come for more than timeout_cycles.
  */
 #ifndef FF_HANDLER_H
 #define FF_HANDLER_H
@@ -31,14 +32,20 @@
 
 /* Same order as firmware_bridge.supervisor.Verdict. */
 enum ff_verdict {
-    FF_ACCEPTED = 0,
-    FF_RESYNC,       /* intact frame taken as the new counter reference, not applied */
-    FF_CORRUPT,      /* wrong length, CRC mismatch or value outside the DBC range */
-    FF_DUPLICATE,    /* same counter as the last accepted frame */
-    FF_OUT_OF_ORDER, /* counter older than the last accepted frame */
-    FF_STALE,        /* older than max_age_cycles by its counter against the drive's cycles */
+    FF_ACCEPTED = 0, /* a command of the held session, applied at the next tick */
+    FF_GRANTED,      /* a request: the session is (or already was) the sender's */
+    FF_RELEASED,     /* the held session's end, asked by its compensator */
+    FF_CORRUPT,      /* wrong length, CRC mismatch or a field outside the DBC range */
+    FF_DUPLICATE,    /* the same stamp as the last command taken */
+    FF_OUT_OF_ORDER, /* older than the last command taken */
+    FF_STALE,        /* older than max_age_cycles by the drive's cycle */
+    FF_EARLY,        /* dated in the drive's future */
+    FF_FOREIGN,      /* of another session than the one held (or none granted) */
     FF_VERDICT_COUNT
 };
+
+/* Same values as the DBC's DriveStatus.State. */
+enum ff_state { FF_WAITING = 0, FF_ACTIVE, FF_HOLD, FF_FALLBACK };
 
 struct ff_config {
     uint16_t data_id;        /* E2EDataId of FfCommand in the DBC */
@@ -46,10 +53,6 @@ struct ff_config {
     uint32_t timeout_cycles; /* cycles without a fresh value before the link counts as lost */
     uint32_t ramp_cycles;    /* cycles a full-scale ramp to zero may take */
     uint32_t max_age_cycles; /* validity window: largest age (drive cycles) applied, inclusive */
-    /* the rule by time (ff_on_frame_at, ff_tick_at); firmware_bridge.freshness */
-    uint32_t cycle_us;         /* the drive cycle in microseconds of the timer */
-    uint32_t transport_cycles; /* 1: a frame applies at the tick after its reception */
-    uint32_t slot_margin_us;   /* SLOT_MARGIN_CYCLES (0.25) of a cycle, in microseconds */
 };
 
 struct ff_handler;
@@ -59,18 +62,16 @@ size_t ff_handler_size(void);
 
 void ff_init(struct ff_handler *h, const struct ff_config *cfg);
 
-/* Check one received FfCommand frame; returns an enum ff_verdict. */
+/* Check one received FfCommand frame against the next tick; returns an enum ff_verdict. */
 int ff_on_frame(struct ff_handler *h, const uint8_t *data, size_t size);
 
-/* Same, received at rx_us (the timer, microseconds, wrapping): dated by time too. */
-int ff_on_frame_at(struct ff_handler *h, const uint8_t *data, size_t size, uint32_t rx_us);
-
-/* One drive cycle: returns the feedforward to apply, in 0.1 mA. */
+/* One drive tick: returns the feedforward to apply, in 0.1 mA. */
 int16_t ff_tick(struct ff_handler *h);
 
-/* Same, the cycle beginning at now_us: a frame from ff_on_frame_at too old by time is
- * refused (counted stale instead of accepted). */
-int16_t ff_tick_at(struct ff_handler *h, uint32_t now_us);
+/* For DriveStatus after a tick: the cycle just run, the session held (0: none), the state. */
+uint16_t ff_last_cycle(const struct ff_handler *h);
+uint8_t ff_session(const struct ff_handler *h);
+int ff_state(const struct ff_handler *h);
 
 /* Number of frames with the given verdict so far. */
 uint32_t ff_count(const struct ff_handler *h, int verdict);

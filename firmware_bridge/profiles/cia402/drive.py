@@ -5,12 +5,7 @@ from __future__ import annotations
 import can
 import canopen
 
-from firmware_bridge.profiles.cia402.codec import (
-    MOTION_TPDO,
-    Cia402Codec,
-    configure_drive,
-    load_drive_od,
-)
+from firmware_bridge.profiles.cia402.codec import Cia402Codec, configure_drive, load_drive_od
 from firmware_bridge.profiles.cia402.receiver import Cia402Receiver
 from firmware_bridge.settings import CanConfig
 from firmware_bridge.supervisor import RejectCounts
@@ -30,9 +25,10 @@ class Cia402Drive:
     bus
         The drive's bus handle.
 
-    At each SYNC it judges the feedforward RPDOs of the cycle and sends its TPDOs:
-    TPDO1 with the drive cycle and the session it holds (what the compensator dates
-    its frames by), TPDO2 with the motion (standing still: this drive moves nothing).
+    At each SYNC it judges the feedforward RPDOs of the cycle and, every
+    ``status_every_cycles`` SYNCs (TPDO1's transmission type), sends TPDO1 with the drive
+    cycle and the session it holds: what the compensator dates its frames by. This drive
+    moves nothing: it sends no TPDO2 (motion).
     """
 
     def __init__(self, cfg: CanConfig, bus: can.BusABC) -> None:
@@ -44,6 +40,8 @@ class Cia402Drive:
         self.codec = Cia402Codec(cfg, od)
         limit = min(self.codec.limit_raw, self.codec.to_raw(cfg.max_current_A))
         self.receiver = Cia402Receiver(self.node, self.codec, cfg, limit)
+        self.status_every = cfg.status_every_cycles
+        self._syncs = 0
 
     @property
     def counts(self) -> RejectCounts:
@@ -53,9 +51,11 @@ class Cia402Drive:
     def handle(self, msg: can.Message, now_s: float) -> None:
         """Take one frame (RPDO, SYNC, heartbeat, SDO, NMT); at a SYNC, send the TPDOs."""
         if self.receiver.on_message(msg, now_s):
-            self._send_tpdos()
+            if self._syncs % self.status_every == 0:
+                self._send_status()
+            self._syncs += 1
 
-    def _send_tpdos(self) -> None:
+    def _send_status(self) -> None:
         receiver = self.receiver
         enabled = receiver.state == "operation_enabled" or receiver.state == "waiting"
         status = self.codec.status_frame(
@@ -64,9 +64,7 @@ class Cia402Drive:
             receiver.clock.session,
             receiver.supervisor.output_raw,
         )
-        network = self.node.network
-        network.send_message(status.arbitration_id, bytes(status.data))
-        network.send_message(self.codec.motion_cob_id, MOTION_TPDO.packing.pack(0, 0))
+        self.node.network.send_message(status.arbitration_id, bytes(status.data))
 
     def set_real_time(self, real_time: bool) -> None:
         """Nothing to set: the SYNC count dates every frame, stepped or in real time."""

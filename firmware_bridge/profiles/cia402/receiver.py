@@ -31,9 +31,10 @@ from firmware_bridge.supervisor import RejectCounts, Supervisor, Verdict
 class Cia402Receiver:
     """The drive side: buffer RPDOs until SYNC, supervise RPDO, SYNC and heartbeat.
 
-    The drive cycle is its count of SYNCs (:class:`~firmware_bridge.freshness.DriveClock`
-    advances at each one); at a SYNC the RPDOs received since the last one are judged
-    in arrival order and the newest accepted command is applied at the next :meth:`tick`.
+    The drive cycle is its own count of ticks (:class:`~firmware_bridge.freshness.DriveClock`
+    advances after each :meth:`tick`, SYNC or not: a lost SYNC does not stop the drive's
+    clock). At a SYNC the RPDOs received since the last one are judged in arrival order
+    against the cycle of the next tick, which applies the newest accepted command.
     """
 
     def __init__(
@@ -89,9 +90,8 @@ class Cia402Receiver:
         return False
 
     def _close_window(self) -> None:
-        """At SYNC: the next drive cycle; its RPDOs judged in arrival order, the newest
-        accepted command wins."""
-        self.clock.advance()
+        """At SYNC: the RPDOs since the last one judged in arrival order, for the next
+        tick; the newest accepted command wins."""
         window, self.window = self.window, []
         for data in window:
             command = self.codec.unpack_rpdo(data)
@@ -127,6 +127,7 @@ class Cia402Receiver:
         if self.out_of_operation:  # no PDO applied, nothing supervised, output to zero
             self.fresh = self.applied_data = None
             out = self.supervisor.tick(None)
+            self.clock.advance()
             write_object(self.node, TORQUE_OFFSET, None, out)
             self._produce_heartbeat(now_s)
             return out
@@ -143,6 +144,7 @@ class Cia402Receiver:
             self.active_faults.discard(EMCY_RPDO_TIMEOUT)
         if self.clock.expire(self.supervisor.timeout_cycles):
             self.supervisor.end()  # the session ends with the link: a new request is needed
+        self.clock.advance()
         write_object(self.node, TORQUE_OFFSET, None, out)
         self._produce_heartbeat(now_s)
         return out

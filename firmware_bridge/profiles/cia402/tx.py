@@ -8,11 +8,15 @@ import can
 
 from firmware_bridge.freshness import DriveTime, Mode
 from firmware_bridge.profiles.base import Claim, SyncCounter
-from firmware_bridge.profiles.cia402.codec import FF_RPDO, Cia402Codec, load_drive_od
+from firmware_bridge.profiles.cia402.codec import (
+    FF_RPDO,
+    STATUS_TPDO,
+    Cia402Codec,
+    load_drive_od,
+)
 from firmware_bridge.settings import CanConfig
 
 _BOOTUP = b"\x00"  # NMT boot-up: the same COB-ID as the heartbeat, not one
-_TPDO_BYTES = (7, 8)  # the drive's TPDO1 and TPDO2 at every SYNC
 
 
 class Cia402Tx:
@@ -23,9 +27,11 @@ class Cia402Tx:
     cfg
         The ``[can]`` section.
 
-    The drive's clock is its count of SYNCs, published in TPDO1 at each SYNC: a frame
-    is stamped with the last count published plus the SYNCs this side saw (or, as
-    SYNC master, sent) since, plus one: the SYNC at which the drive applies it.
+    The drive's clock is its own cycle count, published in TPDO1 at each SYNC (the
+    cycle that SYNC's RPDOs apply at): a frame is stamped with the last cycle published
+    plus the SYNCs this side saw (or, as SYNC master, sent) since, plus one: the cycle
+    after the next SYNC. One SYNC a cycle at most, so the count never runs ahead of
+    the drive's clock; a SYNC lost or a stall only makes frames look older.
     """
 
     def __init__(self, cfg: CanConfig) -> None:
@@ -41,7 +47,7 @@ class Cia402Tx:
         self.follows_sync = not cfg.sync_master
         self.limit_raw = min(self.codec.limit_raw, self.codec.to_raw(cfg.max_current_A))
         self.heartbeat_cycles = max(1, round(cfg.heartbeat_period_s / cfg.cycle_period_s))
-        self.claim = Claim(DriveTime(None, cfg.timeout_cycles + 1))
+        self.claim = Claim(DriveTime(None, cfg.timeout_cycles + cfg.status_every_cycles))
         self.emcy_received: list[int] = []
         self.drive_heartbeats = 0
         self.sync: SyncCounter | None = SyncCounter()  # SYNCs on the bus, whoever produced them
@@ -68,7 +74,8 @@ class Cia402Tx:
         return frames
 
     def traffic(self) -> list[tuple[int, float]]:
-        """RPDO2 and SYNC every cycle, the drive's two TPDOs every SYNC, the heartbeat.
+        """RPDO2 and SYNC every cycle, the drive's TPDO1 every ``status_every_cycles``, the
+        heartbeat.
 
         SYNC is on the bus whoever produces it: without data from this compensator,
         with the one-byte SYNC counter from the NC (:class:`~.nc.SyncProducer`).
@@ -78,7 +85,7 @@ class Cia402Tx:
         return [
             (FF_RPDO.size, rate),
             (sync_bytes, rate),
-            *((size, rate) for size in _TPDO_BYTES),
+            (STATUS_TPDO.size, rate / self.cfg.status_every_cycles),
             (1, 1.0 / self.cfg.heartbeat_period_s),
         ]
 
