@@ -120,7 +120,7 @@ def run_one(variant: str, seed: int) -> dict[str, Any]:
     return {
         "stale": report["stale_or_corrupt_applied"],
         "rejected": sum(report["frames_rejected"].values()),
-        "resync": report["frames_resync"],
+        "resync": report["sessions_granted"],
         "fallback_s": held + period,
         "fallback_limit_s": cfg.fallback_time_s,
         "recovery_cycles": recovery,

@@ -1,9 +1,12 @@
 """Fault injection on the sending side of any python-can bus.
 
-A fault spec reads ``KIND[:PROBABILITY][@START-END]``: ``drop:0.05`` drops 5 % of
-the feedforward frames, ``drop@0.2-0.25`` drops all of them for 50 ms (link
-loss), ``stall@0.3-0.32`` stalls the control loop, ``bus_error@0.4-0.45`` makes
-every send fail (bus off). Frame faults touch only the feedforward frames.
+A fault spec reads ``KIND[=CYCLES][:PROBABILITY][@START-END]``: ``drop:0.05`` drops
+5 % of the feedforward frames, ``drop@0.2-0.25`` drops all of them for 50 ms (link
+loss), ``delay=5@0.2-0.4`` holds every frame for 5 cycles for 0.2 s (a sustained
+delay; ``CYCLES`` is for ``delay`` only, 2 by default), ``stall@0.3-0.32`` stalls the
+control loop, ``bus_error@0.4-0.45`` makes every send fail (bus off). Frame faults
+touch only the feedforward frames. Times are bounded by :data:`MAX_FAULT_TIME_S`,
+delays by :data:`MAX_DELAY_CYCLES`.
 
 ``corrupt`` flips one payload bit. Where the frame carries its own CRC (e2e)
 the damaged frame is delivered, as from a faulty gateway or memory; where it
@@ -26,8 +29,14 @@ from gms_comp.errors import BusError
 FaultKind = Literal["drop", "delay", "duplicate", "reorder", "corrupt", "stall", "bus_error"]
 FAULT_KINDS: tuple[str, ...] = get_args(FaultKind)
 DELAY_CYCLES = 2
+MAX_DELAY_CYCLES = 1000
+"""A frame held longer than this is a lost link, not a delay."""
+MAX_FAULT_TIME_S = 3600.0
+"""A fault window ends within the longest stream (``stream --duration``)."""
+_NUMBER = r"[0-9][0-9.eE+-]{0,15}"
 _SPEC = re.compile(
-    r"^(?P<kind>[a-z_]+)(?::(?P<p>[0-9.eE+-]+))?(?:@(?P<start>[0-9.eE+-]+)-(?P<end>[0-9.eE+-]+))?$"
+    rf"^(?P<kind>[a-z_]{{1,16}})(?:=(?P<cycles>[0-9]{{1,4}}))?(?::(?P<p>{_NUMBER}))?"
+    rf"(?:@(?P<start>{_NUMBER})-(?P<end>{_NUMBER}))?$"
 )
 
 
@@ -39,6 +48,7 @@ class Fault:
     probability: float = 1.0
     start_s: float = 0.0
     end_s: float = math.inf
+    cycles: int = DELAY_CYCLES  # how long a delay holds a frame
 
     def active(self, now_s: float) -> bool:
         """Whether the fault is active at ``now_s``."""
@@ -46,11 +56,18 @@ class Fault:
 
 
 def parse_fault(text: str) -> Fault:
-    """Parse one ``KIND[:PROBABILITY][@START-END]`` spec."""
-    m = _SPEC.match(text.strip())
+    """Parse one ``KIND[=CYCLES][:PROBABILITY][@START-END]`` spec (see the module docstring).
+
+    Raises
+    ------
+    BusError
+        One line naming the spec and what is wrong with it.
+    """
+    shown = repr(text[:60] + ("..." if len(text) > 60 else ""))
+    m = _SPEC.match(text.strip()) if len(text) <= 80 else None
     if m is None or m["kind"] not in FAULT_KINDS:
         raise BusError(
-            f"bad fault spec {text!r}: expected KIND[:PROBABILITY][@START-END] "
+            f"bad fault spec {shown}: expected KIND[=CYCLES][:PROBABILITY][@START-END] "
             f"with KIND one of {', '.join(FAULT_KINDS)}"
         )
     try:
@@ -58,10 +75,19 @@ def parse_fault(text: str) -> Fault:
         start = float(m["start"]) if m["start"] else 0.0
         end = float(m["end"]) if m["end"] else math.inf
     except ValueError:
-        raise BusError(f"bad fault spec {text!r}: numbers expected") from None
+        raise BusError(f"bad fault spec {shown}: numbers expected") from None
     if not 0.0 <= p <= 1.0 or not 0.0 <= start < end:
-        raise BusError(f"bad fault spec {text!r}: need 0 <= PROBABILITY <= 1, 0 <= START < END")
-    return Fault(m["kind"], p, start, end)  # type: ignore[arg-type]
+        raise BusError(f"bad fault spec {shown}: need 0 <= PROBABILITY <= 1, 0 <= START < END")
+    if start > MAX_FAULT_TIME_S or (math.isfinite(end) and end > MAX_FAULT_TIME_S):
+        raise BusError(f"bad fault spec {shown}: START and END must be <= {MAX_FAULT_TIME_S:g} s")
+    cycles = DELAY_CYCLES
+    if m["cycles"] is not None:
+        cycles = int(m["cycles"])
+        if m["kind"] != "delay" or not 1 <= cycles <= MAX_DELAY_CYCLES:
+            raise BusError(
+                f"bad fault spec {shown}: =CYCLES is for delay only, 1..{MAX_DELAY_CYCLES}"
+            )
+    return Fault(m["kind"], p, start, end, cycles)  # type: ignore[arg-type]
 
 
 @dataclass
@@ -96,6 +122,13 @@ class FaultyBus:
             for f in self.faults
         )
 
+    def _delay(self) -> Fault | None:
+        """The delay fault that hits this frame, if any."""
+        for f in self.faults:
+            if f.kind == "delay" and f.active(self.now_s) and self._rng.random() < f.probability:
+                return f
+        return None
+
     def _count(self, kind: str) -> None:
         self.injected[kind] = self.injected.get(kind, 0) + 1
 
@@ -125,9 +158,10 @@ class FaultyBus:
         if self._hits("drop"):
             self._count("drop")
             return
-        if self._hits("delay"):
+        delay = self._delay()
+        if delay is not None:
             self._count("delay")
-            self._held.append((self.cycle + DELAY_CYCLES, msg))
+            self._held.append((self.cycle + delay.cycles, msg))
             return
         if self._reordered is None and self._hits("reorder"):
             self._count("reorder")

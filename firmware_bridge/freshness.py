@@ -1,18 +1,17 @@
 """When a frame may be applied: the drive's cycle as the one clock, sessions as the one claim.
 
 A frame is dated by the **drive's own cycle** (its count of control ticks, on its own
-clock), which the drive publishes with every status frame (e2e: ``DriveStatus.Cycle``,
-the tick just run; cia402: object 0x2002 in its TPDO at each SYNC, the tick that
-SYNC's RPDOs apply at). The compensator never invents a date: it stamps each
-feedforward frame with the drive cycle at which the frame is meant to be applied,
-computed from the last cycle the drive published plus the cycles it has *seen pass
-since* (cia402: the SYNCs after that TPDO, one a cycle at most; e2e: whole periods of
-its own clock since it handled that status frame, at most ``horizon_cycles``) plus one
-(:class:`DriveTime`). Both terms can only lag the truth: a published cycle is already over when it arrives, and a delay of the
-status frame, of the SYNC or of the feedforward frame itself only makes the frame
-look *older* to the drive. So no delay, however long or steady, can make a late frame
-look fresh, and there is nothing to re-anchor (the receiver keeps no correspondence
-between its clock and the sender's).
+clock), which the drive publishes after a tick (e2e: ``DriveStatus.Cycle``; cia402:
+object 0x2002 in its TPDO1, sent at the tick after a SYNC). The compensator never
+invents a date: it stamps each feedforward frame with the earliest drive cycle at
+which the frame can be applied: the last cycle the drive published, plus one, plus
+the whole periods of its own clock since it handled that status (at most
+``horizon_cycles``), plus one for a frame that waits for the next SYNC
+(:class:`DriveTime`). Every term can only lag the truth: a published cycle is already
+over when it arrives, and a delay of the status or of the feedforward frame itself
+only makes the frame look *older* to the drive. So no delay,
+however long or steady, can make a late frame look fresh, and there is nothing to
+re-anchor (the receiver keeps no correspondence between its clock and the sender's).
 
 The rule, shared by :class:`DriveClock` (both emulated drives),
 ``firmware_bridge/c/ff_handler.c`` (the firmware) and, by time, the stream audit
@@ -30,10 +29,12 @@ takes commands from, announced in every status frame (0: none). A compensator as
 for one with *request* frames (no current, a random id, stamped like any frame); the
 drive grants the first fresh request while it holds none. Commands of any other
 session are refused as ``foreign`` and never applied. The session ends with the
-compensator's *release* frame (a clean stop) or when the link is lost (no fresh
-command for ``rx_timeout``): the output ramps to zero and the compensator must ask
-again. That is the one way back after an outage, a restart or a second compensator:
-an explicit request, granted by the drive, never frames that merely keep coming.
+compensator's *release* frame (a clean stop: the output ramps to zero at once) or
+after :data:`SESSION_TIMEOUT_FACTOR` times ``rx_timeout`` without a fresh frame of it
+(a compensator gone without a word; the link itself is lost, and the output ramping,
+after one ``rx_timeout``). A restarted or second compensator (another random id) comes
+in only through an explicit request once the session is free, never because its
+frames keep coming; a delayed link keeps its session but gets nothing applied.
 
 Wrap-around: stamps are 16-bit, so a frame held up for 65 536 cycles (65.5 s at
 1 kHz) plus or minus the window would date like a fresh one; the link is lost, and
@@ -53,6 +54,8 @@ STAMP_MODULUS = 1 << 16
 """Stamps and drive cycles count modulo this (16 bits on the wire)."""
 SESSION_IDS = range(1, 256)
 """Session ids a compensator may draw; 0 means "no session"."""
+SESSION_TIMEOUT_FACTOR = 10
+"""A session ends after this many link timeouts without a fresh frame of it."""
 AGE_TOLERANCE_CYCLES = 1e-6
 """Slack on the boundary for ages computed from float times, in cycles (1 ns at 1 ms)."""
 
@@ -73,6 +76,12 @@ class Command:
     raw: int  # the current in the profile's raw unit
     session: int
     mode: Mode
+
+
+def session_timeout_cycles(timeout_cycles: int) -> int:
+    """Cycles a session outlives its last fresh frame: :data:`SESSION_TIMEOUT_FACTOR`
+    link timeouts (``[can] rx_timeout_s`` in cycles)."""
+    return SESSION_TIMEOUT_FACTOR * timeout_cycles
 
 
 def is_fresh(age_cycles: float, max_age_cycles: float) -> bool:
@@ -150,30 +159,28 @@ class DriveClock:
     ----------
     max_age_cycles
         Validity window: the largest age, in drive cycles, of a frame taken.
+    session_timeout_cycles
+        A session without a granted request or an accepted command for longer ends
+        (:func:`session_timeout_cycles` of the link's timeout).
 
     ``cycle`` is the drive cycle a frame judged now is applied at. Call
-    :meth:`advance` once per drive cycle, :meth:`judge` for each intact frame and
-    :meth:`expire` once per cycle with the link's timeout: a session without a granted
-    request or an accepted command for longer ends (the link is lost).
+    :meth:`advance` once per drive cycle (it also ends an idle session) and
+    :meth:`judge` for each intact frame.
     """
 
     max_age_cycles: int
+    session_timeout_cycles: int = 30
     cycle: int = 0
     session: int = 0
     last_stamp: int | None = None  # newest stamp taken in the held session
     idle_cycles: int = 0  # cycles since the held session's last granted or accepted frame
 
     def advance(self) -> None:
-        """The next drive cycle begins."""
+        """The next drive cycle begins; a session idle for too long ends."""
         self.cycle = (self.cycle + 1) % STAMP_MODULUS
         self.idle_cycles += 1
-
-    def expire(self, timeout_cycles: int) -> bool:
-        """Release the session if idle for more than ``timeout_cycles``; whether it was."""
-        if self.session and self.idle_cycles > timeout_cycles:
+        if self.session and self.idle_cycles > self.session_timeout_cycles:
             self.release()
-            return True
-        return False
 
     def release(self) -> None:
         """End the held session (link lost, or released): a new request is needed."""
@@ -222,31 +229,37 @@ class DriveClock:
 
 @dataclass
 class DriveTime:
-    """The compensator side: the drive cycle a frame sent now will be applied at, at the latest.
+    """The compensator side: the drive cycle a frame sent now applies at, at the earliest.
 
     Parameters
     ----------
     period_s
         The drive cycle, to count the cycles passed since the drive's last status by
-        this side's clock (e2e); None to count SYNCs instead (cia402, :meth:`sync`).
+        this side's clock.
     horizon_cycles
         Counting further than this from the last status is guessing: no date then.
+    lead_cycles
+        Cycles the frame waits on top of the transport the audit grants every frame (a
+        SYNC follower's RPDO waits for the next SYNC: 1).
+
+    The drive publishes the tick it has just run; the status is handled at ``seen_s``
+    (no earlier than that tick) and a frame sent at ``now_s`` reaches the drive no
+    earlier than ``now_s``: so the first tick after the send is at least the published
+    one plus one plus the whole periods from ``seen_s`` to ``now_s``. That is the stamp,
+    plus the lead. Whatever the delays, the drive then dates every frame at least as
+    old as the stream audit does by the wall clock (``tests/test_can_freshness.py``).
     """
 
-    period_s: float | None
+    period_s: float
     horizon_cycles: int
+    lead_cycles: int = 0
     cycle: int | None = None  # the last cycle the drive published
     session: int = 0  # the session it announced with it
     seen_s: float = 0.0  # when that status was handled, by this side's clock
-    syncs: int = 0  # SYNCs since (cia402)
 
     def observe(self, cycle: int, session: int, now_s: float) -> None:
         """The drive published ``cycle`` (just run) and its ``session``; handled at ``now_s``."""
-        self.cycle, self.session, self.seen_s, self.syncs = cycle, session, now_s, 0
-
-    def sync(self) -> None:
-        """A SYNC passed after the last status (sent by us as master, or seen)."""
-        self.syncs += 1
+        self.cycle, self.session, self.seen_s = cycle, session, now_s
 
     def stamp(self, now_s: float) -> int | None:
         """The stamp of a frame sent at ``now_s``: the drive cycle it applies at, or None.
@@ -257,10 +270,7 @@ class DriveTime:
         """
         if self.cycle is None:
             return None
-        if self.period_s is None:
-            passed = self.syncs
-        else:
-            passed = max(0, math.floor((now_s - self.seen_s) / self.period_s))
+        passed = max(0, math.floor((now_s - self.seen_s) / self.period_s))
         if passed > self.horizon_cycles:
             return None
-        return (self.cycle + passed + 1) % STAMP_MODULUS
+        return (self.cycle + passed + 1 + self.lead_cycles) % STAMP_MODULUS

@@ -8,18 +8,18 @@ audit measures ages by the wall clock, not by the code's stamps.
 
 from __future__ import annotations
 
-import math
-
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware_bridge.freshness import (
+    SESSION_TIMEOUT_FACTOR,
     STAMP_MODULUS,
     DriveClock,
     DriveTime,
     Mode,
     is_fresh,
+    session_timeout_cycles,
     stamp_age,
 )
 from firmware_bridge.streamer import count_unsent_applied
@@ -85,13 +85,14 @@ def test_a_stale_request_takes_no_session() -> None:
 
 
 @pytest.mark.parametrize("timeout", [1, 3])
-def test_a_session_without_frames_for_longer_than_the_timeout_ends(timeout: int) -> None:
-    clock = granted_clock(1)
-    for _ in range(timeout):
+def test_a_session_without_frames_for_longer_than_its_timeout_ends(timeout: int) -> None:
+    clock = DriveClock(1, session_timeout_cycles=session_timeout_cycles(timeout))
+    assert clock.judge(0, SESSION, Mode.REQUEST) is Verdict.GRANTED
+    for _ in range(SESSION_TIMEOUT_FACTOR * timeout):
         clock.advance()
-        assert not clock.expire(timeout)
+        assert clock.session == SESSION
     clock.advance()
-    assert clock.expire(timeout) and clock.session == 0
+    assert clock.session == 0
 
 
 def test_the_compensator_has_no_date_before_the_drive_speaks_nor_beyond_its_horizon() -> None:
@@ -101,13 +102,9 @@ def test_the_compensator_has_no_date_before_the_drive_speaks_nor_beyond_its_hori
     assert by_time.stamp(1.0) == 101
     assert by_time.stamp(1.0 + 4.5e-3) == 105  # four whole periods passed
     assert by_time.stamp(1.0 + 5.5e-3) is None  # five: beyond the horizon
-    by_syncs = DriveTime(None, horizon_cycles=2)
-    by_syncs.observe(7, 0, now_s=0.0)
-    by_syncs.sync()
-    assert by_syncs.stamp(123.0) == 9  # time plays no part: the SYNCs since, plus one
-    by_syncs.sync()
-    by_syncs.sync()
-    assert by_syncs.stamp(0.0) is None
+    follower = DriveTime(1e-3, horizon_cycles=4, lead_cycles=1)
+    follower.observe(7, 0, now_s=0.0)
+    assert follower.stamp(0.0) == 9  # its RPDO waits for the next SYNC: one more
 
 
 def test_float_boundary_is_inclusive_with_a_tolerance() -> None:

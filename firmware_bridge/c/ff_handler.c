@@ -6,6 +6,7 @@
 #include "gms_ff.h"
 
 enum { MODE_COMMAND = 0, MODE_REQUEST = 1, MODE_RELEASE = 2 }; /* FfCommand.Mode */
+#define SESSION_TIMEOUT_FACTOR 10u /* firmware_bridge.freshness.SESSION_TIMEOUT_FACTOR */
 
 struct ff_handler {
     struct ff_config cfg;
@@ -172,13 +173,12 @@ int16_t ff_tick(struct ff_handler *h)
         }
     }
     h->has_fresh = false;
-    if (h->session != 0u && h->idle_cycles > h->cfg.timeout_cycles) {
-        release(h); /* the link is lost: a new request is needed */
-        h->link_lost = true;
-    }
     h->last_cycle = h->cycle;
     h->cycle = (uint16_t)(h->cycle + 1u);
     h->idle_cycles = inc_saturating(h->idle_cycles);
+    if (h->session != 0u && h->idle_cycles > SESSION_TIMEOUT_FACTOR * h->cfg.timeout_cycles) {
+        release(h); /* a compensator gone without a word: a new request is needed */
+    }
     return h->output_raw;
 }
 

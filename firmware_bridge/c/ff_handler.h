@@ -22,7 +22,7 @@
  * announces in DriveStatus.Session (ff_session): it grants the first fresh request
  * (Mode 1) while it holds none, refuses frames of any other session (foreign), and
  * releases the session on a fresh release frame (Mode 2) or when no granted request or
- * accepted command of it has come for more than timeout_cycles.
+ * accepted command of it has come for more than 10 x timeout_cycles.
  */
 #ifndef FF_HANDLER_H
 #define FF_HANDLER_H

@@ -100,13 +100,19 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         _REDELIVERY["armed"] = False  # interrupted once is enough
         quiet_finalizers()
-        print(f"{command}: interrupted", file=sys.stderr)
-        return INTERRUPTED
+        # SIGTERM inside a run that stops in order (app.signals) exits 143, not 130
+        print(f"{command}: {'terminated' if _code(err) == 143 else 'interrupted'}", file=sys.stderr)
+        return _code(err)
     except BrokenPipeError:  # the reader of stdout went away (`gms-comp ... | head`)
         _silence_stdout()
         return 1
     finally:
         _REDELIVERY["armed"] = False
+    return code
+
+
+def _code(err: BaseException) -> int:
+    code: int = getattr(err, "exit_code", INTERRUPTED)
     return code
 
 

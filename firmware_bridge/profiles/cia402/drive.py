@@ -25,10 +25,10 @@ class Cia402Drive:
     bus
         The drive's bus handle.
 
-    At each SYNC it judges the feedforward RPDOs of the cycle and, every
-    ``status_every_cycles`` SYNCs (TPDO1's transmission type), sends TPDO1 with the drive
-    cycle and the session it holds: what the compensator dates its frames by. This drive
-    moves nothing: it sends no TPDO2 (motion).
+    At each SYNC it judges the feedforward RPDOs of the cycle; at the tick after every
+    ``status_every_cycles``-th SYNC (TPDO1's transmission type) it sends TPDO1 with the
+    tick just run and the session it holds: what the compensator dates its frames by.
+    This drive moves nothing: it sends no TPDO2 (motion).
     """
 
     def __init__(self, cfg: CanConfig, bus: can.BusABC) -> None:
@@ -42,6 +42,7 @@ class Cia402Drive:
         self.receiver = Cia402Receiver(self.node, self.codec, cfg, limit)
         self.status_every = cfg.status_every_cycles
         self._syncs = 0
+        self._status_due = False
 
     @property
     def counts(self) -> RejectCounts:
@@ -51,8 +52,7 @@ class Cia402Drive:
     def handle(self, msg: can.Message, now_s: float) -> None:
         """Take one frame (RPDO, SYNC, heartbeat, SDO, NMT); at a SYNC, send the TPDOs."""
         if self.receiver.on_message(msg, now_s):
-            if self._syncs % self.status_every == 0:
-                self._send_status()
+            self._status_due |= self._syncs % self.status_every == 0
             self._syncs += 1
 
     def _send_status(self) -> None:
@@ -60,7 +60,7 @@ class Cia402Drive:
         enabled = receiver.state == "operation_enabled" or receiver.state == "waiting"
         status = self.codec.status_frame(
             STATUSWORD_OPERATION_ENABLED if enabled else STATUSWORD_SWITCH_ON_DISABLED,
-            receiver.clock.cycle,
+            receiver.last_cycle,
             receiver.clock.session,
             receiver.supervisor.output_raw,
         )
@@ -70,8 +70,12 @@ class Cia402Drive:
         """Nothing to set: the SYNC count dates every frame, stepped or in real time."""
 
     def tick(self, now_s: float, cycle: int) -> tuple[int, bytes | None]:
-        """One drive cycle; the applied 0x60B2 value and the RPDO applied fresh in it."""
+        """One drive cycle; the applied 0x60B2 value and the RPDO applied fresh in it.
+        TPDO1 follows when a SYNC asked for it."""
         out = self.receiver.tick(now_s)
+        if self._status_due:
+            self._status_due = False
+            self._send_status()
         return out, self.receiver.applied_data
 
     def from_raw(self, raw: int) -> float:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import can
 import canopen
 
-from firmware_bridge.freshness import DriveClock
+from firmware_bridge.freshness import DriveClock, session_timeout_cycles
 from firmware_bridge.profiles.cia402.codec import (
     ABORT_ACTIONS,
     ABORT_CONNECTION_OPTION,
@@ -55,7 +55,9 @@ class Cia402Receiver:
         consumer = read_object(node, 0x1016, 1)
         self.heartbeat_producer = 0x700 + ((consumer >> 16) & 0x7F)
         self.heartbeat_timeout_s = (consumer & 0xFFFF) * 1e-3
-        self.clock = DriveClock(cfg.max_frame_age_cycles)
+        self.clock = DriveClock(
+            cfg.max_frame_age_cycles, session_timeout_cycles(self.supervisor.timeout_cycles)
+        )
         self.window: list[bytes] = []  # RPDOs since the last SYNC
         self.fresh: tuple[int, bytes] | None = None
         self.applied_data: bytes | None = None
@@ -66,6 +68,7 @@ class Cia402Receiver:
         self.heartbeats_sent = 0
         self._next_heartbeat_s: float | None = None
         self.out_of_operation = False  # taken out of operation by NMT: no PDO, no supervision
+        self.last_cycle = 0  # the tick just run
 
     def on_message(self, msg: can.Message, now_s: float) -> bool:
         """Take one frame received at ``now_s``; whether it was a SYNC (the PDOs are due)."""
@@ -127,6 +130,7 @@ class Cia402Receiver:
         if self.out_of_operation:  # no PDO applied, nothing supervised, output to zero
             self.fresh = self.applied_data = None
             out = self.supervisor.tick(None)
+            self.last_cycle = self.clock.cycle
             self.clock.advance()
             write_object(self.node, TORQUE_OFFSET, None, out)
             self._produce_heartbeat(now_s)
@@ -142,8 +146,7 @@ class Cia402Receiver:
             self._raise_fault(EMCY_RPDO_TIMEOUT)
         elif fresh:
             self.active_faults.discard(EMCY_RPDO_TIMEOUT)
-        if self.clock.expire(self.supervisor.timeout_cycles):
-            self.supervisor.end()  # the session ends with the link: a new request is needed
+        self.last_cycle = self.clock.cycle
         self.clock.advance()
         write_object(self.node, TORQUE_OFFSET, None, out)
         self._produce_heartbeat(now_s)

@@ -27,11 +27,9 @@ class Cia402Tx:
     cfg
         The ``[can]`` section.
 
-    The drive's clock is its own cycle count, published in TPDO1 at each SYNC (the
-    cycle that SYNC's RPDOs apply at): a frame is stamped with the last cycle published
-    plus the SYNCs this side saw (or, as SYNC master, sent) since, plus one: the cycle
-    after the next SYNC. One SYNC a cycle at most, so the count never runs ahead of
-    the drive's clock; a SYNC lost or a stall only makes frames look older.
+    The drive's clock is its own tick count, published in TPDO1 at the tick after a
+    SYNC: a frame is stamped by :class:`~firmware_bridge.freshness.DriveTime` from it,
+    one cycle later as a SYNC follower (the RPDO waits for the next SYNC).
     """
 
     def __init__(self, cfg: CanConfig) -> None:
@@ -47,7 +45,8 @@ class Cia402Tx:
         self.follows_sync = not cfg.sync_master
         self.limit_raw = min(self.codec.limit_raw, self.codec.to_raw(cfg.max_current_A))
         self.heartbeat_cycles = max(1, round(cfg.heartbeat_period_s / cfg.cycle_period_s))
-        self.claim = Claim(DriveTime(None, cfg.timeout_cycles + cfg.status_every_cycles))
+        horizon = cfg.timeout_cycles + cfg.status_every_cycles
+        self.claim = Claim(DriveTime(cfg.cycle_period_s, horizon, int(self.follows_sync)))
         self.emcy_received: list[int] = []
         self.drive_heartbeats = 0
         self.sync: SyncCounter | None = SyncCounter()  # SYNCs on the bus, whoever produced them
@@ -68,7 +67,6 @@ class Cia402Tx:
         frames = []
         if self.cfg.sync_master:
             frames.append(self.codec.sync_frame())
-            self.claim.time.sync()
         if cycle % self.heartbeat_cycles == 0:
             frames.append(self.codec.heartbeat_frame())
         return frames
@@ -99,7 +97,6 @@ class Cia402Tx:
         elif cob_id == self.codec.sync_cob_id:
             assert self.sync is not None
             self.sync.saw(msg.timestamp, bytes(msg.data))
-            self.claim.time.sync()
         elif cob_id == 0x80 + self.cfg.drive_node_id and len(msg.data) >= 2:
             self.emcy_received.append(int.from_bytes(msg.data[:2], "little"))
         elif cob_id == 0x700 + self.cfg.drive_node_id and msg.data[:1] != _BOOTUP:

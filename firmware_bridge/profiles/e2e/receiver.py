@@ -5,7 +5,7 @@
 
 from __future__ import annotations
 
-from firmware_bridge.freshness import DriveClock
+from firmware_bridge.freshness import DriveClock, session_timeout_cycles
 from firmware_bridge.profiles.e2e.codec import E2eCodec
 from firmware_bridge.supervisor import RejectCounts, Supervisor, Verdict
 
@@ -25,7 +25,7 @@ class E2eReceiver:
     def __init__(self, codec: E2eCodec, supervisor: Supervisor, max_age_cycles: int) -> None:
         self.codec = codec
         self.supervisor = supervisor
-        self.clock = DriveClock(max_age_cycles)
+        self.clock = DriveClock(max_age_cycles, session_timeout_cycles(supervisor.timeout_cycles))
         self.counts = RejectCounts()
         self.fresh_raw: int | None = None
         self.fresh_data: bytes | None = None
@@ -53,8 +53,6 @@ class E2eReceiver:
         """One drive cycle: apply the fresh value, if any; the applied raw value."""
         out = self.supervisor.tick(self.fresh_raw)
         self.fresh_raw = None
-        if self.clock.expire(self.supervisor.timeout_cycles):
-            self.supervisor.end()
         self.last_cycle = self.clock.cycle
         self.clock.advance()
         return out

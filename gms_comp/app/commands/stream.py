@@ -22,6 +22,7 @@ from firmware_bridge.faults import parse_fault
 from firmware_bridge.profiles import PROFILES
 from firmware_bridge.session import FeedforwardSource, Rig, stream_on
 from firmware_bridge.settings import CanConfig, load_can_config
+from gms_comp.app.signals import stop_requests
 from gms_comp.atomic import atomic_path, write_text
 from gms_comp.config import default_config_path
 from gms_comp.validation import InputError, output_file
@@ -110,11 +111,15 @@ def run(args: argparse.Namespace) -> int:
         )
     faults = [parse_fault(spec) for spec in args.fault]
     with contextlib.ExitStack() as files:
+        stop = files.enter_context(stop_requests())
         log = None if args.log is None else files.enter_context(atomic_path(args.log))
-        # the rig opens first: another compensator on the channel is refused before the work
+        # the rig opens first: another compensator on the channel is refused before the
+        # work, and the claim is kept while the observer is set up
         with Rig(cfg, faults, args.seed, log, builtin_drive=not args.external_drive) as rig:
-            source = gms_observer_source(config_path, cfg, args.duration)
-            report = stream_on(rig, source, args.duration)
+            with rig.watching():
+                source = gms_observer_source(config_path, cfg, args.duration)
+            with stop.deferred() as stop_request:
+                report = stream_on(rig, source, args.duration, stop_request=stop_request)
     report["source"] = "gms_observer"
     text = json.dumps(report, indent=2, sort_keys=True)
     print(text if args.json else summary(report, cfg))
@@ -126,6 +131,12 @@ def run(args: argparse.Namespace) -> int:
     unsafe = (report["stale_or_corrupt_applied"] or 0) > 0 or (
         (report["max_applied_current_A"] or 0.0) > cfg.max_current_A + 1e-9
     )
+    if report["interrupted"]:
+        print(
+            f"gms-comp stream: stopped by {stop.name or 'Ctrl-C'}: ramped to 0 A, session released",
+            file=sys.stderr,
+        )
+        return stop.exit_code
     return 1 if unsafe else 0
 
 
