@@ -37,6 +37,7 @@ KNOWN_SECTIONS = frozenset(
         "scenario",  # trajectory and delays (sim)
         "compensator",  # observer and feedforward (runtime)
         "can",  # CAN transport (firmware_bridge)
+        "machine",  # the simulated machine behind gms-comp machine (sim)
         "diagnosis",  # measured-data analysis
         "scaleout",  # Dask scheduler address and TLS files (application)
     }

@@ -178,14 +178,15 @@ def axis_cycle(
 
     ``x`` is the padded state (4), ``ad``/``bd`` the ZOH matrices of one sub-step,
     ``params = [current limit, sub-steps, noise rms, encoder resolution]``,
-    ``io = [next noise index, last friction force]``. The friction is evaluated
-    at the start of each sub-step and held over it.
+    ``io = [next noise index, last friction force, extra resisting force]``. The friction
+    is evaluated at the start of each sub-step and held over it; the extra force (a
+    simulated machine's hidden effect, 0 otherwise) is held over the cycle.
     """
     limit = params[0]
     u = min(max(current_command_A, -limit), limit)
     f = 0.0
     for _ in range(int(params[1])):
-        f = -truth_force(truth, x[0], x[1])
+        f = -truth_force(truth, x[0], x[1]) - io[2]
         x0, x1, x2, x3 = x[0], x[1], x[2], x[3]
         for i in range(4):
             x[i] = (
@@ -250,12 +251,12 @@ class LinearMotorAxis:
             [cfg.current_limit_A, cfg.substeps, cfg.position_noise_m, cfg.encoder_resolution_m]
         )
         self.state = np.zeros(4)
-        self.io = np.zeros(2)
+        self.io = np.zeros(3)
         self.reset()
 
     def reset(self, cycles: int = 4096) -> None:
-        """At rest at 0 m, no current, friction virgin, noise re-seeded for ``cycles``
-        readings (then repeated)."""
+        """At rest at 0 m, no current, friction virgin, no extra force, noise re-seeded for
+        ``cycles`` readings (then repeated)."""
         self.state[:] = 0.0
         self.io[:] = 0.0
         self.friction.reset()
@@ -279,8 +280,12 @@ class LinearMotorAxis:
 
     @property
     def friction_force_N(self) -> float:
-        """Resisting friction force over the last sub-step."""
+        """Resisting friction force over the last sub-step (the extra force included)."""
         return float(self.io[1])
+
+    def hold_extra_force(self, force_N: float) -> None:
+        """A resisting force on top of the friction truth, held until changed."""
+        self.io[2] = force_N
 
     def measure(self) -> float:
         """Encoder reading: true position plus noise, quantized to the resolution."""
