@@ -201,4 +201,3 @@ def _gms_of(s: Scenario) -> Any:
 
     table = reduce_to_gms(s.ball)
     return scaled(table.params, s.plant.ball_set_count, 1.0)
-

@@ -23,6 +23,7 @@ import itertools
 import math
 import random
 from dataclasses import dataclass, replace
+from typing import Any
 
 import pytest
 
@@ -33,7 +34,7 @@ from firmware_bridge.settings import CanConfig
 CYCLES = 900
 FAULTS_END_S = 0.6
 _channels = itertools.count()
-VARIANTS = {
+VARIANTS: dict[str, dict[str, Any]] = {
     "cia402": {"profile": "cia402"},
     "e2e": {"profile": "e2e"},
     "cia402_nc_sync": {"profile": "cia402", "sync_master": False},
@@ -79,7 +80,7 @@ def combined_run(variant: str, seed: int) -> Outcome:
         CanConfig(),
         max_current_A=1.0,
         channel=f"test-combined-{next(_channels)}",
-        **VARIANTS[variant],  # type: ignore[arg-type]
+        **VARIANTS[variant],
     )
     with Rig(cfg, [parse_fault(s) for s in fault_specs(seed)], seed=seed) as rig:
         applied = [rig.step(k, wave(k)) for k in range(CYCLES)]
@@ -143,7 +144,7 @@ def test_combined_faults_in_real_time(variant: str) -> None:
             CanConfig(),
             max_current_A=1.0,
             channel=f"test-combined-rt-{next(_channels)}",
-            **VARIANTS[variant],  # type: ignore[arg-type]
+            **VARIANTS[variant],
         )
         faults = [parse_fault(s) for s in fault_specs(seed)]
         report = run_stream(cfg, lambda t_s: wave(round(t_s * 1e3)), 0.8, faults, seed)
