@@ -1,17 +1,29 @@
-"""The emulated CiA 402 drive: a canopen LocalNode (SDO, EMCY) around the cia402 receiver."""
+"""The emulated CiA 402 drive: a canopen LocalNode (SDO, EMCY) around the cia402 receiver,
+hosting an axis in cyclic synchronous position when it has one (the simulated machine)."""
 
 from __future__ import annotations
 
 import can
 import canopen
 
-from firmware_bridge.profiles.cia402.codec import Cia402Codec, configure_drive, load_drive_od
+from firmware_bridge.profiles.cia402.codec import (
+    EMCY_SYNC_LOST,
+    MOTION_TPDO,
+    NC_RPDO,
+    POSITION_UNIT_PM,
+    Cia402Codec,
+    configure_drive,
+    load_drive_od,
+    read_object,
+)
+from firmware_bridge.profiles.cia402.motion import PICOMETRE, AxisSample, DriveAxis
 from firmware_bridge.profiles.cia402.receiver import Cia402Receiver
+from firmware_bridge.profiles.cia402.statemachine import PowerState, PowerStateMachine
 from firmware_bridge.settings import CanConfig
 from firmware_bridge.supervisor import RejectCounts
 
-STATUSWORD_OPERATION_ENABLED = 0x0237  # ready, switched on, operation enabled, quick stop off
-STATUSWORD_SWITCH_ON_DISABLED = 0x0250
+EMCY_FOLLOWING_ERROR = 0x8611
+_INT16, _INT32 = 2**15 - 1, 2**31 - 1
 
 
 class Cia402Drive:
@@ -24,14 +36,22 @@ class Cia402Drive:
         object dictionary as an NC would by SDO at start-up.
     bus
         The drive's bus handle.
+    axis
+        The motion it hosts (the simulated machine's :class:`~sim.machine.CspAxis`), or
+        None: a drive that moves nothing and takes the feedforward whenever it is
+        operational (the emulator behind ``gms-comp stream``).
 
-    At each SYNC it judges the feedforward RPDOs of the cycle; at the tick after every
-    ``status_every_cycles``-th SYNC (TPDO1's transmission type) it sends TPDO1 with the
-    tick just run and the session it holds: what the compensator dates its frames by.
-    This drive moves nothing: it sends no TPDO2 (motion).
+    At each SYNC it judges the feedforward RPDOs of the cycle (and, with an axis, takes
+    the NC's controlword and target from RPDO1); at the tick after every
+    ``status_every_cycles``-th SYNC (the TPDOs' transmission type) it sends TPDO1 with its
+    statusword, the tick just run and the session it holds (what the compensator dates
+    its frames by) and the current, and with an axis TPDO2 with position and velocity.
+    With an axis it runs the CiA 402 state machine: it follows the target and applies the
+    feedforward only in "operation enabled", and faults on a lost SYNC or a following
+    error beyond the axis's limit (EMCY 0x8100, 0x8611).
     """
 
-    def __init__(self, cfg: CanConfig, bus: can.BusABC) -> None:
+    def __init__(self, cfg: CanConfig, bus: can.BusABC, axis: DriveAxis | None = None) -> None:
         od = load_drive_od(cfg.drive_node_id)
         self.node = canopen.LocalNode(cfg.drive_node_id, od)
         network = canopen.Network(bus)  # no notifier: the emulator dispatches itself
@@ -43,6 +63,12 @@ class Cia402Drive:
         self.status_every = cfg.status_every_cycles
         self._syncs = 0
         self._status_due = False
+        self.axis = axis
+        self.power = PowerStateMachine()
+        self.unit_m = read_object(self.node, POSITION_UNIT_PM) * PICOMETRE
+        self.target_m = 0.0
+        self._nc: bytes | None = None  # the NC's RPDO1 since the last SYNC
+        self.sample: AxisSample | None = None
 
     @property
     def counts(self) -> RejectCounts:
@@ -50,42 +76,93 @@ class Cia402Drive:
         return self.receiver.counts
 
     def handle(self, msg: can.Message, now_s: float) -> None:
-        """Take one frame (RPDO, SYNC, heartbeat, SDO, NMT); at a SYNC, send the TPDOs."""
+        """Take one frame (RPDOs, SYNC, heartbeat, SDO, NMT); at a SYNC, the NC's command."""
+        if msg.arbitration_id == self.codec.nc_cob_id and len(msg.data) == NC_RPDO.size:
+            self._nc = bytes(msg.data)
+            return
         if self.receiver.on_message(msg, now_s):
+            if self._nc is not None and self.axis is not None:
+                controlword, target = NC_RPDO.packing.unpack(self._nc)
+                self.power.command(controlword)
+                self.target_m = target * self.unit_m
+            self._nc = None
             self._status_due |= self._syncs % self.status_every == 0
             self._syncs += 1
 
-    def _send_status(self) -> None:
-        receiver = self.receiver
-        enabled = receiver.state == "operation_enabled" or receiver.state == "waiting"
-        status = self.codec.status_frame(
-            STATUSWORD_OPERATION_ENABLED if enabled else STATUSWORD_SWITCH_ON_DISABLED,
-            receiver.last_cycle,
-            receiver.clock.session,
-            receiver.supervisor.output_raw,
-        )
-        self.node.network.send_message(status.arbitration_id, bytes(status.data))
-
     def set_real_time(self, real_time: bool) -> None:
-        """Nothing to set: the SYNC count dates every frame, stepped or in real time."""
+        """Nothing to set: the drive's tick dates every frame, stepped or in real time."""
 
     def tick(self, now_s: float, cycle: int) -> tuple[int, bytes | None]:
         """One drive cycle; the applied 0x60B2 value and the RPDO applied fresh in it.
-        TPDO1 follows when a SYNC asked for it."""
+        The axis moves one bus cycle; the TPDOs follow when a SYNC asked for them."""
         out = self.receiver.tick(now_s)
+        if self.axis is not None:
+            self._move(out)
         if self._status_due:
             self._status_due = False
-            self._send_status()
+            self._send_tpdos()
         return out, self.receiver.applied_data
+
+    def _move(self, offset_raw: int) -> None:
+        assert self.axis is not None
+        if self.power.enabled and EMCY_SYNC_LOST in self.receiver.active_faults:
+            self.power.fault(EMCY_SYNC_LOST)
+        enabled = self.power.enabled
+        offset_A = self.codec.from_raw(offset_raw) if enabled else 0.0
+        self.sample = self.axis.cycle(self.target_m, offset_A, enabled)
+        if enabled and abs(self.sample.following_error_m) > self.axis.max_following_error_m:
+            self.power.fault(EMCY_FOLLOWING_ERROR)
+            self.receiver.raise_fault(EMCY_FOLLOWING_ERROR)
+
+    @property
+    def statusword(self) -> int:
+        """0x6041: the state machine's with an axis; without, operation enabled unless the
+        feedforward link faulted or the node left operation."""
+        if self.axis is not None:
+            return self.power.statusword
+        enabled = self.receiver.state in ("operation_enabled", "waiting")
+        state = PowerState.OPERATION_ENABLED if enabled else PowerState.SWITCH_ON_DISABLED
+        return state.value | 0x0200
+
+    def _send_tpdos(self) -> None:
+        receiver = self.receiver
+        sample = self.sample
+        current_raw = (
+            receiver.supervisor.output_raw
+            if sample is None
+            else self.codec.to_raw(sample.current_A)
+        )
+        status = self.codec.status_frame(
+            self.statusword,
+            receiver.last_cycle,
+            receiver.clock.session,
+            max(-_INT16, min(_INT16, current_raw)),
+        )
+        network = self.node.network
+        network.send_message(status.arbitration_id, bytes(status.data))
+        if sample is not None:
+            position = round(sample.position_m / self.unit_m)
+            velocity = round(sample.velocity_m_s / self.unit_m)
+            network.send_message(
+                self.codec.motion_cob_id,
+                MOTION_TPDO.packing.pack(_clip32(position), _clip32(velocity)),
+            )
 
     def from_raw(self, raw: int) -> float:
         """Per mille of the rated current -> A."""
         return self.codec.from_raw(raw)
 
     def state(self) -> str:
-        """The receiver's state (operation_enabled, waiting, or the 0x6007 reaction)."""
+        """The receiver's state (operation_enabled, waiting, or the 0x6007 reaction); with
+        an axis, the CiA 402 state."""
+        if self.axis is not None:
+            return self.power.state.name.lower()
         return self.receiver.state
 
     def emcy(self) -> list[str]:
         """EMCY codes sent, as ``0xNNNN``."""
         return [f"0x{code:04X}" for code in self.receiver.emcy_sent]
+
+
+def _clip32(value: int) -> int:
+    return max(-_INT32, min(_INT32, value))

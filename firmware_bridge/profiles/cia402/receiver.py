@@ -143,7 +143,7 @@ class Cia402Receiver:
         out = self.supervisor.tick(fresh[0] if fresh else None)
         self.applied_data = fresh[1] if fresh else None
         if self.supervisor.link_lost and not was_lost:
-            self._raise_fault(EMCY_RPDO_TIMEOUT)
+            self.raise_fault(EMCY_RPDO_TIMEOUT)
         elif fresh:
             self.active_faults.discard(EMCY_RPDO_TIMEOUT)
         self.last_cycle = self.clock.cycle
@@ -168,7 +168,7 @@ class Cia402Receiver:
 
     def _supervise(self, now_s: float) -> None:
         if self._overdue(self.last_sync_s, self.sync_timeout_s, now_s):
-            self._raise_fault(EMCY_SYNC_LOST)
+            self.raise_fault(EMCY_SYNC_LOST)
             # the SYNC these RPDOs waited for did not come in time: stale once it does
             for _ in self.window:
                 self.counts.add(Verdict.STALE)
@@ -176,7 +176,7 @@ class Cia402Receiver:
         else:
             self.active_faults.discard(EMCY_SYNC_LOST)
         if self._overdue(self.last_heartbeat_s, self.heartbeat_timeout_s, now_s):
-            self._raise_fault(EMCY_HEARTBEAT)
+            self.raise_fault(EMCY_HEARTBEAT)
         else:
             self.active_faults.discard(EMCY_HEARTBEAT)
 
@@ -185,7 +185,8 @@ class Cia402Receiver:
         # before the first message there is nothing to supervise yet
         return last_s is not None and now_s - last_s > timeout_s
 
-    def _raise_fault(self, code: int) -> None:
+    def raise_fault(self, code: int) -> None:
+        """Send EMCY ``code`` once, until the fault clears."""
         if code in self.active_faults:
             return
         self.active_faults.add(code)

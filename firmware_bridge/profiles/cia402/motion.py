@@ -1,0 +1,194 @@
+"""Motion on a CiA 402 bus: the axis a drive hosts, the NC's part program, what is seen.
+
+- :class:`DriveAxis`: what a drive does with its motion each bus cycle (cyclic
+  synchronous position): the simulated machine's axis implements it, a real drive
+  has its own.
+- :class:`NcProgram`: the NC's side of one motion: the CiA 402 enable sequence on the
+  controlword, then one target position per SYNC, then the axis held and disabled. The
+  NC of ``gms-comp machine --nc`` sends it, and so do ``record`` and ``commission`` when
+  they drive the axis themselves.
+- :class:`Observed`: the latest motion seen on the bus (the NC's RPDO1 as it passes,
+  the drive's TPDO1/TPDO2), for a compensator that follows the machine and a recorder.
+
+Positions travel in increments of the drive's position unit (object 0x2010, in
+picometres), velocities in increments per second, currents in per mille of the rated
+current 0x6075.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import can
+
+from firmware_bridge.profiles.cia402.codec import MOTION_TPDO, NC_RPDO, Cia402Codec
+from firmware_bridge.profiles.cia402.statemachine import (
+    DISABLE_VOLTAGE,
+    ENABLE_SEQUENCE,
+    SHUTDOWN,
+    PowerState,
+    state_of,
+)
+
+PICOMETRE = 1e-12
+ENABLE_WAIT_CYCLES = 50  # how long the NC waits for each step of the enable sequence
+
+
+class AxisSample(Protocol):
+    """What a drive reads off its axis at the end of a bus cycle (SI units)."""
+
+    @property
+    def position_m(self) -> float:
+        """The encoder's reading."""
+        ...
+
+    @property
+    def velocity_m_s(self) -> float:
+        """The drive's velocity estimate."""
+        ...
+
+    @property
+    def current_A(self) -> float:
+        """The measured motor current."""
+        ...
+
+    @property
+    def following_error_m(self) -> float:
+        """Target less the encoder's reading."""
+        ...
+
+
+class DriveAxis(Protocol):
+    """The motion a drive hosts, one bus cycle per :meth:`cycle` (CSP, 0x6060 = 8)."""
+
+    max_following_error_m: float
+
+    def cycle(self, target_position_m: float, torque_offset_A: float, enabled: bool) -> AxisSample:
+        """Follow the target with the feedforward added (held in place when not enabled)."""
+        ...
+
+
+class Phase(enum.Enum):
+    """Where an :class:`NcProgram` is."""
+
+    ENABLING = "enabling"
+    MOVING = "moving"
+    DISABLING = "disabling"
+    DONE = "done"
+    FAILED = "failed"
+
+
+@dataclass
+class NcProgram:
+    """One motion of the NC: enable, the targets one per SYNC, hold, disable.
+
+    Parameters
+    ----------
+    targets_m
+        Target positions, one per bus cycle, from the axis at rest at the first.
+    unit_m
+        The drive's position unit (0x2010).
+    hold_cycles
+        Cycles the last target is held before the drive is disabled.
+    """
+
+    targets_m: Sequence[float]
+    unit_m: float
+    hold_cycles: int = 100
+    phase: Phase = Phase.ENABLING
+    index: int = 0  # the target sent last
+    _step: int = 0  # which command of the enable sequence
+    _waited: int = 0
+    _held: int = 0
+
+    def rpdo(self, codec: Cia402Codec, seen: PowerState | None) -> can.Message | None:
+        """The RPDO1 of this cycle, given the state the drive showed last (None: unknown);
+        None once the program is over."""
+        controlword, target = self._next(seen)
+        if controlword is None:
+            return None
+        data = NC_RPDO.packing.pack(controlword, round(target / self.unit_m))
+        return can.Message(arbitration_id=codec.nc_cob_id, data=data, is_extended_id=False)
+
+    def _next(self, seen: PowerState | None) -> tuple[int | None, float]:
+        start = float(self.targets_m[0])
+        if self.phase is Phase.ENABLING:
+            wanted = (PowerState.READY_TO_SWITCH_ON, PowerState.SWITCHED_ON,
+                      PowerState.OPERATION_ENABLED)[self._step]  # fmt: skip
+            if seen is wanted:
+                self._step, self._waited = self._step + 1, 0
+                if self._step == len(ENABLE_SEQUENCE):
+                    self.phase = Phase.MOVING
+                    return ENABLE_SEQUENCE[-1], start
+            self._waited += 1
+            if self._waited > ENABLE_WAIT_CYCLES:
+                self.phase = Phase.FAILED
+                return DISABLE_VOLTAGE, start
+            return ENABLE_SEQUENCE[self._step], start
+        if self.phase is Phase.MOVING:
+            if seen is not None and seen is not PowerState.OPERATION_ENABLED:
+                self.phase = Phase.FAILED  # the drive left operation (a fault)
+                return DISABLE_VOLTAGE, float(self.targets_m[self.index])
+            if self.index + 1 < len(self.targets_m):
+                self.index += 1
+            else:
+                self._held += 1
+                if self._held >= self.hold_cycles:
+                    self.phase = Phase.DISABLING
+            return ENABLE_SEQUENCE[-1], float(self.targets_m[self.index])
+        if self.phase is Phase.DISABLING:
+            self.phase = Phase.DONE
+            return SHUTDOWN, float(self.targets_m[self.index])
+        return None, 0.0
+
+    @property
+    def moving(self) -> bool:
+        """The drive is following the targets."""
+        return self.phase is Phase.MOVING
+
+
+@dataclass
+class Observed:
+    """The latest motion seen on the bus, in SI units; None where nothing came yet."""
+
+    unit_m: float
+    rated_current_A: float
+    target_m: float | None = None  # the NC's RPDO1
+    controlword: int | None = None
+    statusword: int | None = None  # TPDO1
+    current_A: float | None = None
+    position_m: float | None = None  # TPDO2
+    velocity_m_s: float | None = None
+    counts: dict[str, int] = field(default_factory=lambda: {"nc": 0, "status": 0, "motion": 0})
+
+    @property
+    def state(self) -> PowerState | None:
+        """The drive's state by its last statusword."""
+        return None if self.statusword is None else state_of(self.statusword)
+
+    def take(self, codec: Cia402Codec, msg: can.Message) -> str | None:
+        """Note one frame if it is the NC's RPDO1 or a TPDO; which one it was."""
+        data = bytes(msg.data)
+        cob_id = msg.arbitration_id
+        if cob_id == codec.nc_cob_id and len(data) == NC_RPDO.size:
+            self.controlword, target = NC_RPDO.packing.unpack(data)
+            self.target_m = target * self.unit_m
+            kind = "nc"
+        elif cob_id == codec.status_cob_id:
+            report = codec.unpack_status(data)
+            if report is None:
+                return None
+            self.statusword = report.statusword
+            self.current_A = report.current_raw * self.rated_current_A / 1000
+            kind = "status"
+        elif cob_id == codec.motion_cob_id and len(data) == MOTION_TPDO.size:
+            position, velocity = MOTION_TPDO.packing.unpack(data)
+            self.position_m, self.velocity_m_s = position * self.unit_m, velocity * self.unit_m
+            kind = "motion"
+        else:
+            return None
+        self.counts[kind] += 1
+        return kind
