@@ -52,9 +52,12 @@ class DriveEmulator:
         The ``[can]`` section.
     bus
         The drive's bus handle.
+    side
+        The drive's side, built on ``bus`` (the simulated machine's drive hosts an
+        axis); by default the profile's drive.
     """
 
-    def __init__(self, cfg: CanConfig, bus: can.BusABC) -> None:
+    def __init__(self, cfg: CanConfig, bus: can.BusABC, side: DriveSide | None = None) -> None:
         self.cfg = cfg
         self.bus = bus
         self.cycle = 0
@@ -63,7 +66,7 @@ class DriveEmulator:
         self.applied_log: list[tuple[float, bytes]] = []
         self.frames_applied = 0
         self.output_log: list[tuple[float, float]] | None = None  # (time, A) per cycle, if set
-        self.side: DriveSide = get_profile(cfg.profile).make_drive(cfg, bus)
+        self.side: DriveSide = side or get_profile(cfg.profile).make_drive(cfg, bus)
 
     @property
     def counts(self) -> RejectCounts:

@@ -38,6 +38,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     "demo_trace",
     "sweep",
     "stream",
+    "machine",
     "simulate",
     "replay",
     "table",

@@ -23,6 +23,9 @@ from firmware_bridge.settings import CanConfig
 from firmware_bridge.supervisor import RejectCounts
 
 EMCY_FOLLOWING_ERROR = 0x8611
+SYNC_LOSS_CYCLES = 20
+"""An axis in operation faults when SYNC has been gone this long (the NC stopped); a SYNC
+late by a cycle or two raises EMCY 0x8100 but keeps the axis moving."""
 _INT16, _INT32 = 2**15 - 1, 2**31 - 1
 
 
@@ -47,8 +50,9 @@ class Cia402Drive:
     statusword, the tick just run and the session it holds (what the compensator dates
     its frames by) and the current, and with an axis TPDO2 with position and velocity.
     With an axis it runs the CiA 402 state machine: it follows the target and applies the
-    feedforward only in "operation enabled", and faults on a lost SYNC or a following
-    error beyond the axis's limit (EMCY 0x8100, 0x8611).
+    feedforward only in "operation enabled", and faults when SYNC has been gone for
+    :data:`SYNC_LOSS_CYCLES` or on a following error beyond the axis's limit (EMCY
+    0x8100, 0x8611).
     """
 
     def __init__(self, cfg: CanConfig, bus: can.BusABC, axis: DriveAxis | None = None) -> None:
@@ -67,6 +71,7 @@ class Cia402Drive:
         self.power = PowerStateMachine()
         self.unit_m = read_object(self.node, POSITION_UNIT_PM) * PICOMETRE
         self.target_m = 0.0
+        self.sync_loss_s = SYNC_LOSS_CYCLES * cfg.cycle_period_s
         self._nc: bytes | None = None  # the NC's RPDO1 since the last SYNC
         self.sample: AxisSample | None = None
 
@@ -97,15 +102,16 @@ class Cia402Drive:
         The axis moves one bus cycle; the TPDOs follow when a SYNC asked for them."""
         out = self.receiver.tick(now_s)
         if self.axis is not None:
-            self._move(out)
+            self._move(out, now_s)
         if self._status_due:
             self._status_due = False
             self._send_tpdos()
         return out, self.receiver.applied_data
 
-    def _move(self, offset_raw: int) -> None:
+    def _move(self, offset_raw: int, now_s: float) -> None:
         assert self.axis is not None
-        if self.power.enabled and EMCY_SYNC_LOST in self.receiver.active_faults:
+        last_sync = self.receiver.last_sync_s
+        if self.power.enabled and last_sync is not None and now_s - last_sync > self.sync_loss_s:
             self.power.fault(EMCY_SYNC_LOST)
         enabled = self.power.enabled
         offset_A = self.codec.from_raw(offset_raw) if enabled else 0.0

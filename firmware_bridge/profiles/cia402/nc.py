@@ -1,4 +1,5 @@
-"""The NC as SYNC master, for a compensator that follows SYNC (``sync_master = false``)."""
+"""The NC as SYNC master: for a compensator that follows SYNC (``sync_master = false``),
+and with a part program (:class:`MotionNc`) for the simulated machine."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import can
 
 from firmware_bridge.profiles.base import SYNC_COUNTER_OVERFLOW
 from firmware_bridge.profiles.cia402.codec import Cia402Codec
+from firmware_bridge.profiles.cia402.motion import NcProgram, Observed
 
 
 class SyncProducer:
@@ -54,3 +56,33 @@ class SyncProducer:
             missed = max(0, math.floor((clock() - next_s) / self.period_s))
             self.slot += missed
             next_s += (1 + missed) * self.period_s
+
+
+class MotionNc(SyncProducer):
+    """The NC with a part program: each cycle its RPDO1 (controlword, target), then SYNC.
+
+    It reads the drive's statusword from the bus to step through the enable sequence
+    (:class:`~firmware_bridge.profiles.cia402.motion.NcProgram`); after the program it
+    keeps producing SYNC, the drive disabled.
+    """
+
+    def __init__(
+        self,
+        bus: can.BusABC,
+        codec: Cia402Codec,
+        period_s: float,
+        program: NcProgram,
+        observed: Observed,
+    ) -> None:
+        super().__init__(bus, codec, period_s)
+        self.program = program
+        self.observed = observed
+
+    def send(self) -> None:
+        """Read what the drive said, send this cycle's RPDO1 (if any), then SYNC."""
+        while (msg := self.bus.recv(timeout=0.0)) is not None:
+            self.observed.take(self.codec, msg)
+        rpdo = self.program.rpdo(self.codec, self.observed.state)
+        if rpdo is not None:
+            self.bus.send(rpdo)
+        super().send()

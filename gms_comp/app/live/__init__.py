@@ -1,0 +1,1 @@
+"""The compensator on a live CAN bus: the simulated machine, recording, following, commissioning."""
