@@ -11,9 +11,9 @@ would; the same master code talks to them as to a real drive.
 from __future__ import annotations
 
 import contextlib
-from collections import Counter
 import threading
 import time
+from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
