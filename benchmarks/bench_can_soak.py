@@ -49,7 +49,8 @@ from test_can_combined import VARIANTS, fault_specs, wave
 
 from firmware_bridge.emulator import DriveEmulator
 from firmware_bridge.faults import parse_fault
-from firmware_bridge.session import Rig, stream_on
+from firmware_bridge.realtime import stream_on
+from firmware_bridge.session import Rig
 from firmware_bridge.settings import CanConfig
 from firmware_bridge.streamer import ChannelTakenError
 

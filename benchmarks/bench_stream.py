@@ -16,7 +16,7 @@ import platform
 from dataclasses import replace
 from pathlib import Path
 
-from firmware_bridge.session import run_stream
+from firmware_bridge.realtime import run_stream
 from firmware_bridge.settings import load_can_config
 from gms_comp.app.commands.stream import gms_observer_source
 from gms_comp.config import default_config_path

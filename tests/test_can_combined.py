@@ -28,7 +28,8 @@ from typing import Any
 import pytest
 
 from firmware_bridge.faults import parse_fault
-from firmware_bridge.session import Rig, run_stream
+from firmware_bridge.realtime import run_stream
+from firmware_bridge.session import Rig
 from firmware_bridge.settings import CanConfig
 
 CYCLES = 900

@@ -14,11 +14,12 @@ import can
 import canopen
 import pytest
 
-from firmware_bridge import session
+from firmware_bridge import realtime as session
 from firmware_bridge.emulator import DriveEmulator
 from firmware_bridge.profiles.cia402.codec import default_eds_path
 from firmware_bridge.profiles.cia402.drive import Cia402Drive
-from firmware_bridge.session import Rig, run_stream
+from firmware_bridge.realtime import run_stream
+from firmware_bridge.session import Rig
 from firmware_bridge.settings import CanConfig
 
 _channels = itertools.count()

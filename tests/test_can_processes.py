@@ -20,7 +20,7 @@ from typing import Any
 import can
 import pytest
 
-from firmware_bridge.session import run_stream
+from firmware_bridge.realtime import run_stream
 from firmware_bridge.settings import CanConfig
 from gms_comp.app.cli import main
 from gms_comp.config import default_config_path

@@ -18,7 +18,7 @@ from types import SimpleNamespace
 import can
 import pytest
 
-from firmware_bridge import session
+from firmware_bridge import realtime as session
 from firmware_bridge.profiles.base import SYNC_COUNTER_OVERFLOW, SyncCounter, sync_slot
 from firmware_bridge.profiles.cia402 import nc
 from firmware_bridge.profiles.cia402.codec import Cia402Codec, load_drive_od

@@ -20,7 +20,8 @@ from typing import Any
 
 from firmware_bridge.faults import parse_fault
 from firmware_bridge.profiles import PROFILES
-from firmware_bridge.session import FeedforwardSource, Rig, stream_on
+from firmware_bridge.realtime import stream_on
+from firmware_bridge.session import FeedforwardSource, Rig
 from firmware_bridge.settings import CanConfig, load_can_config
 from gms_comp.app.signals import stop_requests
 from gms_comp.atomic import atomic_path, write_text
@@ -146,7 +147,7 @@ def summary(report: dict[str, Any], cfg: CanConfig) -> str:
     Parameters
     ----------
     report
-        The report of :func:`firmware_bridge.session.stream_on`.
+        The report of :func:`firmware_bridge.realtime.stream_on`.
     cfg
         The ``[can]`` section the stream ran with.
 
