@@ -10,10 +10,14 @@ from firmware_bridge.freshness import DriveTime, Mode
 from firmware_bridge.profiles.base import Claim, SyncCounter
 from firmware_bridge.profiles.cia402.codec import (
     FF_RPDO,
+    POSITION_UNIT_PM,
     STATUS_TPDO,
     Cia402Codec,
     load_drive_od,
+    od_default,
 )
+from firmware_bridge.profiles.cia402.motion import PICOMETRE, NcProgram, Observed
+from firmware_bridge.profiles.cia402.recorder import Recorder
 from firmware_bridge.settings import CanConfig
 
 _BOOTUP = b"\x00"  # NMT boot-up: the same COB-ID as the heartbeat, not one
@@ -34,7 +38,12 @@ class Cia402Tx:
 
     def __init__(self, cfg: CanConfig) -> None:
         self.cfg = cfg
-        self.codec = Cia402Codec(cfg, load_drive_od(cfg.drive_node_id))
+        od = load_drive_od(cfg.drive_node_id)
+        self.codec = Cia402Codec(cfg, od)
+        unit_m = od_default(od, POSITION_UNIT_PM) * PICOMETRE
+        self.observed = Observed(unit_m, cfg.rated_current_A)  # the motion on the bus
+        self.program: NcProgram | None = None  # the NC's part, when this side drives the axis
+        self.recorder: Recorder | None = None  # a recording of the axis, per SYNC
         self.target_ids = frozenset({self.codec.rpdo_cob_id})
         # our heartbeat's node id, and SYNC when we produce it, are ours alone too
         own = {self.codec.rpdo_cob_id, self.codec.heartbeat_cob_id}
@@ -63,10 +72,20 @@ class Cia402Tx:
         return self.codec.rpdo_frame(raw, stamp, self.claim.session, mode)
 
     def extra(self, cycle: int) -> list[can.Message]:
-        """SYNC (as master) after the RPDO; the heartbeat when due."""
+        """After the feedforward RPDO: as SYNC master, the NC's RPDO1 when this side
+        drives the axis, then SYNC; the heartbeat when due."""
         frames = []
         if self.cfg.sync_master:
+            target = None
+            if self.program is not None:
+                rpdo = self.program.rpdo(self.codec, self.observed.state)
+                if rpdo is not None:
+                    frames.append(rpdo)
+                    self.observed.take(self.codec, rpdo)
+                    target = self.observed.target_m
             frames.append(self.codec.sync_frame())
+            if self.recorder is not None:
+                self.recorder.sync(target)
         if cycle % self.heartbeat_cycles == 0:
             frames.append(self.codec.heartbeat_frame())
         return frames
@@ -88,8 +107,12 @@ class Cia402Tx:
         ]
 
     def on_reply(self, msg: can.Message, now_s: float) -> None:
-        """The drive's TPDO1 (its cycle and session); SYNCs, EMCYs and heartbeats counted."""
+        """The drive's TPDO1 (its cycle and session); the motion seen (the NC's RPDO1, the
+        TPDOs) and the recording; SYNCs, EMCYs and heartbeats counted."""
         cob_id = msg.arbitration_id
+        self.observed.take(self.codec, msg)
+        if self.recorder is not None:
+            self.recorder.frame(msg)
         if cob_id == self.codec.status_cob_id:
             report = self.codec.unpack_status(bytes(msg.data))
             if report is not None:
@@ -97,6 +120,8 @@ class Cia402Tx:
         elif cob_id == self.codec.sync_cob_id:
             assert self.sync is not None
             self.sync.saw(msg.timestamp, bytes(msg.data))
+            if self.recorder is not None:
+                self.recorder.sync()
         elif cob_id == 0x80 + self.cfg.drive_node_id and len(msg.data) >= 2:
             self.emcy_received.append(int.from_bytes(msg.data[:2], "little"))
         elif cob_id == 0x700 + self.cfg.drive_node_id and msg.data[:1] != _BOOTUP:
