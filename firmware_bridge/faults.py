@@ -16,9 +16,11 @@ controller's CRC-15 discards the frame: the receiver gets an error frame.
 
 from __future__ import annotations
 
+import bisect
 import math
 import random
 import re
+import time
 from dataclasses import dataclass, field
 from typing import Literal, get_args
 
@@ -192,3 +194,56 @@ class FaultyBus:
     def recv(self, timeout: float | None = None) -> can.Message | None:
         """Receive from the underlying bus (faults act on sending only)."""
         return self.bus.recv(timeout)
+
+
+@dataclass
+class FaultyReceiver:
+    """Receives through ``bus``, dropping or delaying frames with ids in ``target_ids`` as
+    the ``drop`` and ``delay`` faults say (a lossy link in front of a listener: a recorder).
+
+    Fault windows count from the first call; a delay holds a frame ``cycles`` x
+    ``period_s`` by its timestamp, then hands it on.
+    """
+
+    bus: can.BusABC
+    faults: tuple[Fault, ...]
+    target_ids: frozenset[int]
+    period_s: float
+    seed: int = 0
+    injected: dict[str, int] = field(default_factory=dict)
+    _held: list[tuple[float, can.Message]] = field(default_factory=list)
+    _t0: float | None = None
+
+    def __post_init__(self) -> None:
+        self._rng = random.Random(self.seed)
+
+    def recv(self, timeout: float | None = None) -> can.Message | None:
+        """The next frame that got through (a held one once it is due), or None (also when
+        the frame received was dropped or held: call again)."""
+        msg = self.bus.recv(timeout)
+        now = time.time() if msg is None else msg.timestamp
+        if msg is not None and self._t0 is None:
+            self._t0 = msg.timestamp
+        if msg is not None and msg.arbitration_id in self.target_ids:
+            msg = self._through(msg)
+        if self._held and self._held[0][0] <= now:
+            if msg is not None:  # the held frame goes first, this one right after
+                bisect.insort(self._held, (now, msg), key=lambda held: held[0])
+            return self._held.pop(0)[1]
+        return msg
+
+    def _through(self, msg: can.Message) -> can.Message | None:
+        assert self._t0 is not None
+        now = msg.timestamp - self._t0
+        for f in self.faults:
+            if not f.active(now) or self._rng.random() >= f.probability:
+                continue
+            if f.kind == "drop":
+                self.injected["drop"] = self.injected.get("drop", 0) + 1
+                return None
+            if f.kind == "delay":
+                self.injected["delay"] = self.injected.get("delay", 0) + 1
+                release = msg.timestamp + f.cycles * self.period_s
+                bisect.insort(self._held, (release, msg), key=lambda held: held[0])
+                return None
+        return msg

@@ -39,6 +39,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     "sweep",
     "stream",
     "machine",
+    "record",
     "simulate",
     "replay",
     "table",

@@ -144,6 +144,11 @@ class NcProgram:
             return SHUTDOWN, float(self.targets_m[self.index])
         return None, 0.0
 
+    def stop(self) -> None:
+        """End the program early: the next RPDO1 disables the drive (shutdown)."""
+        if self.phase in (Phase.ENABLING, Phase.MOVING):
+            self.phase = Phase.DISABLING
+
     @property
     def moving(self) -> bool:
         """The drive is following the targets."""

@@ -31,13 +31,24 @@ class Recording:
     unit_m: float
     rated_current_A: float
     rows: list[tuple[float, float, float, float]] = field(default_factory=list)
+    slots: list[int] = field(default_factory=list)  # each row's SYNC slot (time / cycle)
     lost: dict[str, int] = field(default_factory=lambda: {"status": 0, "motion": 0, "target": 0})
     late: int = 0
 
     def column(self, name: str) -> FloatArray:
-        """One column of :data:`COLUMNS` as an array."""
+        """One column of :data:`COLUMNS` on the grid of SYNC slots from the first row's to
+        the last's: NaN at a slot without a SYNC (the loop that sent them was late)."""
         i = COLUMNS.index(name)
-        return np.array([row[i] for row in self.rows], dtype=np.float64)
+        out = np.full(self.span, np.nan)
+        if self.rows:
+            first = self.slots[0]
+            out[[s - first for s in self.slots]] = [row[i] for row in self.rows]
+        return out
+
+    @property
+    def span(self) -> int:
+        """Slots from the first row's to the last's."""
+        return self.slots[-1] - self.slots[0] + 1 if self.slots else 0
 
 
 class Recorder:
@@ -57,6 +68,7 @@ class Recorder:
         self._last_cycle: int | None = None
         self._drop_next_motion = False
         self._pending_target = math.nan  # the NC's RPDO1 seen since the last SYNC
+        self._slot = 0
 
     def frame(self, msg: can.Message) -> None:
         """One frame from the bus: the NC's target, or a TPDO for the open row."""
@@ -85,9 +97,9 @@ class Recorder:
             unit = self.recording.unit_m
             self._motion = (position * unit, velocity * unit)
 
-    def sync(self, target_m: float | None = None) -> None:
-        """A SYNC: close the open row, open the next with ``target_m`` (default: the NC's
-        RPDO1 seen since the last SYNC)."""
+    def sync(self, slot: int, target_m: float | None = None) -> None:
+        """A SYNC of time slot ``slot``: close the open row, open the next with ``target_m``
+        (default: the NC's RPDO1 seen since the last SYNC)."""
         rec = self.recording
         if self._open:
             if len(rec.rows) >= MAX_ROWS:
@@ -96,6 +108,7 @@ class Recorder:
             rec.lost["status"] += status is None
             rec.lost["motion"] += motion is None
             rec.lost["target"] += math.isnan(self._target)
+            rec.slots.append(self._slot)
             rec.rows.append(
                 (
                     self._target,
@@ -104,7 +117,7 @@ class Recorder:
                     math.nan if status is None else status[1],
                 )
             )
-        self._open = True
+        self._open, self._slot = True, slot
         self._target = self._pending_target if target_m is None else target_m
         self._pending_target = math.nan
         self._status = self._motion = None

@@ -7,7 +7,7 @@ from typing import Any
 import can
 
 from firmware_bridge.freshness import DriveTime, Mode
-from firmware_bridge.profiles.base import Claim, SyncCounter
+from firmware_bridge.profiles.base import Claim, SyncCounter, sync_slot
 from firmware_bridge.profiles.cia402.codec import (
     FF_RPDO,
     POSITION_UNIT_PM,
@@ -44,6 +44,7 @@ class Cia402Tx:
         self.observed = Observed(unit_m, cfg.rated_current_A)  # the motion on the bus
         self.program: NcProgram | None = None  # the NC's part, when this side drives the axis
         self.recorder: Recorder | None = None  # a recording of the axis, per SYNC
+        self._slots: tuple[int, int | None, float] | None = None  # last slot, counter, first
         self.target_ids = frozenset({self.codec.rpdo_cob_id})
         # our heartbeat's node id, and SYNC when we produce it, are ours alone too
         own = {self.codec.rpdo_cob_id, self.codec.heartbeat_cob_id}
@@ -85,7 +86,7 @@ class Cia402Tx:
                     target = self.observed.target_m
             frames.append(self.codec.sync_frame())
             if self.recorder is not None:
-                self.recorder.sync(target)
+                self.recorder.sync(cycle, target)
         if cycle % self.heartbeat_cycles == 0:
             frames.append(self.codec.heartbeat_frame())
         return frames
@@ -121,11 +122,24 @@ class Cia402Tx:
             assert self.sync is not None
             self.sync.saw(msg.timestamp, bytes(msg.data))
             if self.recorder is not None:
-                self.recorder.sync()
+                self.recorder.sync(self._follower_slot())
         elif cob_id == 0x80 + self.cfg.drive_node_id and len(msg.data) >= 2:
             self.emcy_received.append(int.from_bytes(msg.data[:2], "little"))
         elif cob_id == 0x700 + self.cfg.drive_node_id and msg.data[:1] != _BOOTUP:
             self.drive_heartbeats += 1
+
+    def _follower_slot(self) -> int:
+        """The time slot of the SYNC just seen: by the NC's SYNC counter, whole wraps by
+        time (:func:`~firmware_bridge.profiles.base.sync_slot`)."""
+        assert self.sync is not None
+        if self._slots is None:
+            self._slots = (0, self.sync.last_counter, self.sync.last_s)
+            return 0
+        previous, counter, first_s = self._slots
+        by_time = round((self.sync.last_s - first_s) / self.cfg.cycle_period_s)
+        slot = sync_slot(previous, counter, self.sync.last_counter, by_time)
+        self._slots = (slot, self.sync.last_counter, first_s)
+        return slot
 
     def stop_frames(self) -> tuple[list[can.Message], str]:
         """As SYNC master: NMT pre-operational to the drive, so silence is no fault.
@@ -135,7 +149,12 @@ class Cia402Tx:
         """
         if self.follows_sync:
             return [], "session released; the NC owns the drive's state"
-        return [self.codec.leave_operation_frame()], (
+        frames = []
+        if self.program is not None and self.program.phase.value in ("enabling", "moving"):
+            self.program.stop()  # stopped early: the axis is disabled first
+            rpdo = self.program.rpdo(self.codec, self.observed.state)
+            frames += [*([rpdo] if rpdo is not None else []), self.codec.sync_frame()]
+        return [*frames, self.codec.leave_operation_frame()], (
             f"session released, NMT pre-operational sent to drive node "
             f"{self.cfg.drive_node_id}: PDOs and their supervision end without a fault"
         )

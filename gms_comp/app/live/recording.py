@@ -1,0 +1,194 @@
+"""Recording the axis on the bus into a trace the diagnosis reads, with its sidecar.
+
+With an NC on the bus the recording only listens (one row per SYNC of the NC); without
+one it drives the axis itself along the identification profile (``gms-comp profile``):
+NMT start, the CiA 402 enable sequence, cyclic synchronous position as SYNC master, the
+axis disabled at the end (:class:`~firmware_bridge.profiles.cia402.motion.NcProgram`).
+Rows come from the drive's TPDOs (:mod:`firmware_bridge.profiles.cia402.recorder`): a
+lost or late one leaves NaN in its row, counted in the sidecar, never interpolated.
+
+The force column is the friction the diagnosis fits: the motor force less the inertia of
+the commanded motion, ``force_N = k_f * current_actual - m * a_target`` with the force
+constant and moving mass of ``[plant]`` (the sidecar states them).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, cast
+
+import can
+import numpy as np
+
+from firmware_bridge.bus import open_bus
+from firmware_bridge.faults import Fault, FaultyReceiver
+from firmware_bridge.profiles.cia402.codec import NMT_START, PDOS
+from firmware_bridge.profiles.cia402.motion import NcProgram
+from firmware_bridge.profiles.cia402.recorder import Recorder, Recording
+from firmware_bridge.profiles.cia402.tx import Cia402Tx
+from firmware_bridge.realtime import stream_on
+from firmware_bridge.session import Rig
+from firmware_bridge.settings import CanConfig
+from gms_comp.arrays import FloatArray
+from gms_comp.atomic import write_text
+from gms_comp.errors import BusError
+from gms_comp.measured.traces import Trace
+from sim.plant import PlantConfig
+from sim.tracegen import identification_profile
+
+NC_LISTEN_S = 0.3  # a SYNC within this long means an NC runs the bus
+HOLD_CYCLES = 200
+
+
+@dataclass(frozen=True)
+class RecordedTrace:
+    """A recording turned into a trace, and what the sidecar says of it."""
+
+    trace: Trace
+    sidecar: dict[str, Any]
+
+
+def nc_on_bus(cfg: CanConfig, listen_s: float = NC_LISTEN_S) -> bool:
+    """Whether another node produces SYNC on the channel."""
+    tx = Cia402Tx(replace(cfg, sync_master=False))
+    deadline = time.monotonic() + listen_s
+    with open_bus(cfg) as bus:
+        while (remaining := deadline - time.monotonic()) > 0:
+            msg = bus.recv(timeout=remaining)
+            if msg is not None and msg.arbitration_id == tx.codec.sync_cob_id:
+                return True
+    return False
+
+
+def profile_targets(period_s: float, scale: float) -> FloatArray:
+    """The identification profile as targets one per bus cycle, from rest at 0."""
+    _, x, _ = identification_profile(1.0 / period_s, scale)
+    return x
+
+
+def drive_and_record(
+    cfg: CanConfig,
+    targets: Sequence[float],
+    faults: Sequence[Fault] = (),
+    seed: int = 0,
+    stop_request: threading.Event | None = None,
+) -> tuple[Recording, dict[str, Any]]:
+    """Drive the axis along ``targets`` as NC and SYNC master (no feedforward) and record it.
+
+    Returns the recording and the stream's report. A stop request ends the program
+    early, the axis disabled.
+    """
+    cfg = replace(cfg, profile="cia402", sync_master=True)
+    with Rig(cfg, faults, seed, builtin_drive=False) as rig:
+        tx = cast(Cia402Tx, rig.tx)
+        rig.streamer.bus.send(_nmt_start(cfg))
+        tx.program = NcProgram(list(targets), tx.observed.unit_m, HOLD_CYCLES)
+        tx.recorder = Recorder(tx.codec, tx.observed.unit_m, cfg.rated_current_A)
+        duration = (len(targets) + HOLD_CYCLES + 60) * cfg.cycle_period_s
+        report = stream_on(rig, lambda t_s: 0.0, duration, stop_request=stop_request)
+        if tx.program.phase.value == "failed":
+            raise BusError(
+                f"drive node {cfg.drive_node_id} did not follow the NC's program "
+                f"(state {tx.observed.state}): is it enabled, in CSP mode, without a fault?"
+            )
+        return tx.recorder.recording, report
+
+
+def listen_and_record(
+    cfg: CanConfig, duration_s: float, faults: Sequence[Fault] = (), seed: int = 0
+) -> Recording:
+    """Record an axis an NC drives: one row per SYNC seen, for ``duration_s``."""
+    tx = Cia402Tx(replace(cfg, profile="cia402", sync_master=False))
+    recorder = Recorder(tx.codec, tx.observed.unit_m, cfg.rated_current_A)
+    tx.recorder = recorder
+    deadline = time.monotonic() + duration_s
+    with open_bus(cfg) as raw:
+        bus = FaultyReceiver(raw, tuple(faults), frozenset({tx.codec.status_cob_id,
+                             tx.codec.motion_cob_id}), cfg.cycle_period_s, seed)  # fmt: skip
+        while (remaining := deadline - time.monotonic()) > 0:
+            msg = bus.recv(timeout=min(remaining, 0.05))
+            if msg is not None:
+                tx.on_reply(msg, time.time())
+    return recorder.recording
+
+
+def to_trace(
+    recording: Recording, cfg: CanConfig, plant: PlantConfig, source: str
+) -> RecordedTrace:
+    """The rows as a trace (force from current, less the target's inertia) and the sidecar."""
+    period = cfg.cycle_period_s
+    n = recording.span
+    first = recording.slots[0] if recording.slots else 0
+    target = recording.column("reference_position_m")
+    accel = np.full(n, math.nan)
+    accel[1:-1] = (target[2:] - 2 * target[1:-1] + target[:-2]) / period**2
+    current = recording.column("current_A")
+    force = plant.force_constant_N_per_A * current - plant.moving_mass_kg * accel
+    trace = Trace(
+        source=source,
+        time_s=(first + np.arange(n)) * period,
+        position_m=recording.column("position_m"),
+        force_N=force,
+        velocity_m_s=recording.column("velocity_m_s"),
+        reference_position_m=target,
+        current_A=current,
+        force_kind="friction",
+    )
+    missing = ~(np.isfinite(trace.position_m) & np.isfinite(force))
+    sidecar = {
+        "source": source,
+        "drive": {
+            "node_id": cfg.drive_node_id,
+            "interface": cfg.interface,
+            "channel": cfg.channel,
+        },
+        "cycle_period_s": period,
+        "samples": n,
+        "samples_missing": int(missing.sum()),
+        "syncs_skipped": n - len(recording.rows),
+        "lost": dict(recording.lost),
+        "late": recording.late,
+        "scaling": {
+            "position_unit_m": recording.unit_m,
+            "rated_current_A": recording.rated_current_A,
+            "force_constant_N_per_A": plant.force_constant_N_per_A,
+            "moving_mass_kg": plant.moving_mass_kg,
+            "force_N": "force_constant * current_A - moving_mass * (second difference of "
+            "reference_position_m)",
+        },
+        "pdo_mapping": {
+            f"0x{pdo.comm:04X}": [f"0x{i:04X}:{bits}" for i, bits in pdo.objects] for pdo in PDOS
+        },
+    }
+    return RecordedTrace(trace, sidecar)
+
+
+def write_recording(recorded: RecordedTrace, out: Path) -> list[Path]:
+    """The trace CSV (NaN where a sample is missing) and its JSON sidecar beside it."""
+    tr = recorded.trace
+    columns: dict[str, FloatArray] = {"time_s": tr.time_s, "position_m": tr.position_m,
+                                      "force_N": tr.force_N}  # fmt: skip
+    for name in ("velocity_m_s", "reference_position_m", "current_A"):
+        values = getattr(tr, name)
+        if values is not None:
+            columns[name] = values
+    buf = io.StringIO()
+    np.savetxt(buf, np.column_stack(list(columns.values())), delimiter=",", comments="",
+               fmt="%.12g", header=",".join(columns))  # fmt: skip
+    sidecar = out.with_suffix(out.suffix + ".json")
+    return [
+        write_text(out, buf.getvalue()),
+        write_text(sidecar, json.dumps(recorded.sidecar, indent=2) + "\n"),
+    ]
+
+
+def _nmt_start(cfg: CanConfig) -> can.Message:
+    return can.Message(arbitration_id=0, data=bytes([NMT_START, cfg.drive_node_id]),
+                       is_extended_id=False)  # fmt: skip
