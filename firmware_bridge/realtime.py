@@ -125,6 +125,7 @@ class _LoopStats:
         self.late = 0
         self.skipped = 0
         self.max_lateness = 0.0
+        self.sync_to_sent: list[float] = []
 
     def record(self, lateness_s: float, loop_time_s: float) -> None:
         """One cycle that started ``lateness_s`` after its due time."""
@@ -132,9 +133,25 @@ class _LoopStats:
         self.max_lateness = max(self.max_lateness, lateness_s)
         self.late += lateness_s + loop_time_s > self.period_s
 
+    def answered(self, sync_to_sent_s: float) -> None:
+        """A follower's frame went out this long after the SYNC it answers (bus clock)."""
+        self.sync_to_sent.append(sync_to_sent_s)
+
     def summary(self, cycles: int) -> dict[str, Any]:
         times = self.loop_times
+        answers = self.sync_to_sent
+        follower = (
+            {
+                "sync_to_sent_p50_s": float(np.percentile(answers, 50)),
+                "sync_to_sent_p99_s": float(np.percentile(answers, 99)),
+                "sync_to_sent_max_s": max(answers),
+                "answered_within_cycle": sum(a < self.period_s for a in answers) / len(answers),
+            }
+            if answers
+            else {}
+        )
         return {
+            **follower,
             "cycles": cycles,
             "late_cycles": self.late + self.skipped,
             "max_lateness_s": self.max_lateness,
@@ -169,7 +186,8 @@ def _control_loop(
         if stall_end is not None:  # an injected controller stall blocks the loop
             _sleep_until(stall_end, since_start)
         start = since_start()
-        rig.send_cycle(cycle, source(scheduled) if cycle < end else None, start)
+        current = source(scheduled) if cycle < end else None
+        rig.send_cycle(cycle, current, start, hold=cycle < end and current is None)
         stats.record(start - scheduled, since_start() - start)
         # a late loop does not catch up with a burst: it resumes at the current slot
         behind = int(since_start() / period) - cycle
@@ -249,8 +267,9 @@ def _follower_loop(
         lateness = time.time() - sync.last_s
         start = clock()
         current = source(cycle * period) if cycle < end else None
-        rig.send_cycle(cycle, current, cycle * period)
+        rig.send_cycle(cycle, current, cycle * period, hold=cycle < end and current is None)
         stats.record(lateness, clock() - start)
+        stats.answered(time.time() - sync.last_s)
 
     with _released_when_taken(rig, lambda: (cycle + 1, (cycle + 1) * period)):
         while not sync_lost and (

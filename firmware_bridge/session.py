@@ -45,7 +45,9 @@ from firmware_bridge.streamer import (
 )
 from gms_comp.errors import BusError
 
-FeedforwardSource = Callable[[float], float]  # time in s -> feedforward current in A
+FeedforwardSource = Callable[[float], "float | None"]
+"""Time in s -> feedforward current in A; None: no input this cycle (the motion it follows
+did not arrive), so no frame is sent and the drive's timeout rules apply."""
 CHANNEL_CHECK_S = 0.02  # listen this long (at least 10 cycles) for another compensator
 CONNECT_CYCLES = 10  # the handshake takes 3 cycles, 4 for a SYNC follower
 
@@ -132,8 +134,11 @@ class Rig:
         if self.streamer.taken is not None:
             raise ChannelTakenError(self.streamer.taken)
 
-    def send_cycle(self, cycle: int, current_A: float | None, now_s: float | None = None) -> None:
-        """The compensator's part of control cycle ``cycle`` (nothing while stalled).
+    def send_cycle(
+        self, cycle: int, current_A: float | None, now_s: float | None = None, hold: bool = False
+    ) -> None:
+        """The compensator's part of control cycle ``cycle`` (nothing while stalled);
+        ``current_A`` None ramps towards zero, ``hold`` sends no feedforward this cycle.
 
         Raises
         ------
@@ -143,7 +148,7 @@ class Rig:
         now_s = cycle * self.cfg.cycle_period_s if now_s is None else now_s
         self.faulty.begin_cycle(cycle, now_s)
         if not self.faulty.stalled():
-            self.streamer.cycle(cycle, current_A, now_s)
+            self.streamer.cycle(cycle, current_A, now_s, hold)
         if self.streamer.taken is not None:
             raise ChannelTakenError(self.streamer.taken)
 

@@ -79,6 +79,7 @@ class Streamer:
     frames_sent: int = 0
     requests_sent: int = 0
     undated_cycles: int = 0  # cycles without the drive's clock: nothing sent
+    inputs_missing: int = 0  # cycles whose motion input did not arrive: nothing sent
     send_errors: int = 0
     source_faults: int = 0
     foreign_frames: int = 0  # frames with our exclusive ids sent by another node
@@ -96,12 +97,18 @@ class Streamer:
         self.bus.send(msg)
         self.own_recent.append((msg.arbitration_id, bytes(msg.data)))
 
-    def cycle(self, cycle: int, current_A: float | None, now_s: float) -> int:
-        """Send cycle ``cycle``'s frames; ``None`` ramps towards zero. Returns the raw command.
+    def cycle(self, cycle: int, current_A: float | None, now_s: float, hold: bool = False) -> int:
+        """Send cycle ``cycle``'s frames; ``None`` ramps towards zero, ``hold`` sends no
+        feedforward frame (its input is missing: the drive holds, then times out).
+        Returns the raw command.
 
         ``now_s`` is this side's clock (the drive's cycle is counted on from it).
         """
         self.drain_replies(now_s)
+        if hold:
+            self.inputs_missing += 1
+            self._send_frames(None, Mode.COMMAND, self.tx.extra(cycle), now_s)
+            return self.shaper.value_raw
         if current_A is not None and not math.isfinite(current_A):
             self.source_faults += 1
             current_A = None
@@ -110,7 +117,9 @@ class Streamer:
             raw = self.shaper.step(None if current_A is None else self.tx.to_raw(current_A))
         else:  # the drive applies nothing of ours until it grants the session
             mode, raw, self.shaper.value_raw = Mode.REQUEST, 0, 0
-        self._send_frames(self.tx.feedforward(mode, raw, now_s), mode, self.tx.extra(cycle), now_s)
+        frame = self.tx.feedforward(mode, raw, now_s)
+        self.undated_cycles += frame is None
+        self._send_frames(frame, mode, self.tx.extra(cycle), now_s)
         return raw
 
     def release(self, cycle: int, now_s: float) -> None:
@@ -131,9 +140,7 @@ class Streamer:
         # however long the thread waited (GIL, scheduler) around the call
         before = now_s if self.send_clock is None else self.send_clock()
         try:
-            if feedforward is None:
-                self.undated_cycles += 1
-            else:
+            if feedforward is not None:
                 self._send(feedforward)
                 self._log_sent(feedforward, mode, before, now_s)
             for msg in extra:

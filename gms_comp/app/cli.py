@@ -40,6 +40,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     "stream",
     "machine",
     "record",
+    "run",
     "simulate",
     "replay",
     "table",
