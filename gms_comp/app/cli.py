@@ -41,6 +41,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     "machine",
     "record",
     "run",
+    "commission",
     "simulate",
     "replay",
     "table",

@@ -88,7 +88,8 @@ class NcProgram:
     Parameters
     ----------
     targets_m
-        Target positions, one per bus cycle, from the axis at rest at the first.
+        Target positions, one per bus cycle, relative to the first: the motion starts
+        where the axis stands when the drive is enabled (``origin_m``).
     unit_m
         The drive's position unit (0x2010).
     hold_cycles
@@ -98,11 +99,22 @@ class NcProgram:
     targets_m: Sequence[float]
     unit_m: float
     hold_cycles: int = 100
+    origin_m: float = 0.0
     phase: Phase = Phase.ENABLING
     index: int = 0  # the target sent last
     _step: int = 0  # which command of the enable sequence
     _waited: int = 0
     _held: int = 0
+
+    def start_at(self, position_m: float | None) -> None:
+        """Where the axis stands (its position actual, while enabling): the origin."""
+        if self.phase is Phase.ENABLING and position_m is not None:
+            self.origin_m = position_m
+
+    def target_at(self, index: int) -> float:
+        """Target ``index`` (clipped to the program), in absolute position."""
+        i = min(max(index, 0), len(self.targets_m) - 1)
+        return self.origin_m + float(self.targets_m[i]) - float(self.targets_m[0])
 
     def rpdo(self, codec: Cia402Codec, seen: PowerState | None) -> can.Message | None:
         """The RPDO1 of this cycle, given the state the drive showed last (None: unknown);
@@ -114,7 +126,7 @@ class NcProgram:
         return can.Message(arbitration_id=codec.nc_cob_id, data=data, is_extended_id=False)
 
     def _next(self, seen: PowerState | None) -> tuple[int | None, float]:
-        start = float(self.targets_m[0])
+        start = self.target_at(0)
         if self.phase is Phase.ENABLING:
             wanted = (PowerState.READY_TO_SWITCH_ON, PowerState.SWITCHED_ON,
                       PowerState.OPERATION_ENABLED)[self._step]  # fmt: skip
@@ -131,17 +143,17 @@ class NcProgram:
         if self.phase is Phase.MOVING:
             if seen is not None and seen is not PowerState.OPERATION_ENABLED:
                 self.phase = Phase.FAILED  # the drive left operation (a fault)
-                return DISABLE_VOLTAGE, float(self.targets_m[self.index])
+                return DISABLE_VOLTAGE, self.target_at(self.index)
             if self.index + 1 < len(self.targets_m):
                 self.index += 1
             else:
                 self._held += 1
                 if self._held >= self.hold_cycles:
                     self.phase = Phase.DISABLING
-            return ENABLE_SEQUENCE[-1], float(self.targets_m[self.index])
+            return ENABLE_SEQUENCE[-1], self.target_at(self.index)
         if self.phase is Phase.DISABLING:
             self.phase = Phase.DONE
-            return SHUTDOWN, float(self.targets_m[self.index])
+            return SHUTDOWN, self.target_at(self.index)
         return None, 0.0
 
     def stop(self) -> None:

@@ -82,6 +82,7 @@ class MotionNc(SyncProducer):
         """Read what the drive said, send this cycle's RPDO1 (if any), then SYNC."""
         while (msg := self.bus.recv(timeout=0.0)) is not None:
             self.observed.take(self.codec, msg)
+        self.program.start_at(self.observed.position_m)
         rpdo = self.program.rpdo(self.codec, self.observed.state)
         if rpdo is not None:
             self.bus.send(rpdo)

@@ -79,6 +79,7 @@ class Cia402Tx:
         if self.cfg.sync_master:
             target = None
             if self.program is not None:
+                self.program.start_at(self.observed.position_m)
                 rpdo = self.program.rpdo(self.codec, self.observed.state)
                 if rpdo is not None:
                     frames.append(rpdo)

@@ -148,7 +148,7 @@ def run(args: argparse.Namespace) -> int:
     if args.report:
         Path(args.report).mkdir(parents=True, exist_ok=True)
     if table_path is not None:
-        write_table(table_path, _table(result, args.trace))
+        write_table(table_path, extended_table(result, args.trace))
         doc["table"] = str(table_path)
         written.append(str(table_path))
     if args.report:
@@ -291,7 +291,8 @@ def _run_fleet(args: argparse.Namespace, mapping: Mapping[str, str] | None) -> i
     return 0 if all(row["status"] == "ok" for row in fleet["traces"]) else 1
 
 
-def _table(result: Diagnosis, trace_path: str) -> GmsTable:
+def extended_table(result: Diagnosis, trace_path: str | Path) -> GmsTable:
+    """The diagnosed model as a GMS table with its extensions (its force: the axis's)."""
     level = max(float(result.baseline["sliding_force_N"]), 1e-12)
     s = result.series
     worst = float(np.max(np.abs(s["force_N"] - s["extended_N"])))

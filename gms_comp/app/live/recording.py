@@ -19,7 +19,7 @@ import json
 import math
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, cast
@@ -73,14 +73,20 @@ def profile_targets(period_s: float, scale: float) -> FloatArray:
     return x
 
 
+Feedforward = Callable[[NcProgram], "float | None"]
+"""The feedforward current for the cycle about to be sent, from the NC's program."""
+
+
 def drive_and_record(
     cfg: CanConfig,
     targets: Sequence[float],
     faults: Sequence[Fault] = (),
     seed: int = 0,
     stop_request: threading.Event | None = None,
+    feedforward: Feedforward | None = None,
 ) -> tuple[Recording, dict[str, Any]]:
-    """Drive the axis along ``targets`` as NC and SYNC master (no feedforward) and record it.
+    """Drive the axis along ``targets`` as NC and SYNC master and record it; with
+    ``feedforward``, the torque offset of each cycle from it (else 0 A).
 
     Returns the recording and the stream's report. A stop request ends the program
     early, the axis disabled.
@@ -92,7 +98,12 @@ def drive_and_record(
         tx.program = NcProgram(list(targets), tx.observed.unit_m, HOLD_CYCLES)
         tx.recorder = Recorder(tx.codec, tx.observed.unit_m, cfg.rated_current_A)
         duration = (len(targets) + HOLD_CYCLES + 60) * cfg.cycle_period_s
-        report = stream_on(rig, lambda t_s: 0.0, duration, stop_request=stop_request)
+        program = tx.program
+
+        def source(t_s: float) -> float | None:
+            return 0.0 if feedforward is None else feedforward(program)
+
+        report = stream_on(rig, source, duration, stop_request=stop_request)
         if tx.program.phase.value == "failed":
             raise BusError(
                 f"drive node {cfg.drive_node_id} did not follow the NC's program "

@@ -1,0 +1,116 @@
+"""``gms-comp commission``: from nothing to a compensated axis, on a bus with no NC running.
+
+It drives the axis itself (NMT start, the CiA 402 enable sequence, cyclic synchronous
+position as SYNC master; the axis is left stopped and disabled after each step, also on
+Ctrl-C): it records the identification profile, diagnoses it (the cause of what the ball
+model does not explain, the extended model), then runs the ``[scenario]`` reversal test
+once per feedforward: none, Coulomb+viscous fitted to the recording, the physics table
+(the ball model, whole guide) and the extended table. It reports the cause and the gain
+in um: a summary on stdout (``--json``: the whole document), ``--report DIR`` a JSON and
+a self-contained HTML page with plots, ``--table OUT`` the extended table for
+``gms-comp run``.
+
+Against the simulated machine: ``gms-comp machine --interface udp_multicast --channel
+ff11::4743:4d53`` in one terminal, this command with the same interface and channel in
+another; against a real drive: ``--interface socketcan --channel can0``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from firmware_bridge.settings import load_can_config
+from gms_comp.app.commands.diagnose import extended_table
+from gms_comp.app.live.commission import commission
+from gms_comp.app.live.recording import nc_on_bus
+from gms_comp.app.signals import stop_requests
+from gms_comp.config import default_config_path
+from gms_comp.errors import BusError
+from gms_comp.tables.table import write_table
+from gms_comp.validation import input_file, output_dir, output_file
+from sim.scenarios import load_scenario
+
+
+def register(subparsers: Any) -> None:
+    """Add ``commission`` to the CLI."""
+    p = subparsers.add_parser(
+        "commission",
+        help="record, diagnose and verify an axis on the CAN bus (no NC running)",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("config", nargs="?", type=input_file, help="config file (default: Table 1)")
+    p.add_argument("--interface", help="python-can interface (default: [can] interface)")
+    p.add_argument("--channel", help="python-can channel (default: [can] channel)")
+    p.add_argument(
+        "--scale",
+        type=float,
+        default=1.0,
+        choices=(0.25, 0.5, 1.0),
+        help="length of the identification profile (1.0: about 40 s)",
+    )
+    p.add_argument("--json", action="store_true", help="print the document as JSON on stdout")
+    p.add_argument("--report", type=output_dir, metavar="DIR", help="write JSON and HTML here")
+    p.add_argument("--table", type=output_file, metavar="OUT", help="write the extended table")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Commission the axis on the bus; report the cause and the gain."""
+    path = args.config if args.config is not None else default_config_path()
+    s = load_scenario(path)
+    cfg = load_can_config(path)
+    overrides = {k: v for k in ("interface", "channel") if (v := getattr(args, k)) is not None}
+    cfg = replace(cfg, **overrides, profile="cia402", sync_master=True)
+    if nc_on_bus(cfg):
+        raise BusError(
+            f"an NC produces SYNC on {cfg.interface} {cfg.channel!r}: commission drives the "
+            "axis itself only when no NC runs (use gms-comp record and run beside an NC)"
+        )
+
+    def say(message: str) -> None:
+        print(f"commission: {message}", file=sys.stderr, flush=True)
+
+    with stop_requests() as stop, stop.deferred() as stopping:
+        result = commission(cfg, s, lambda r: extended_table(r, path), args.scale, stopping, say)
+    doc = result.to_json()
+    doc["interrupted"] = stopping.is_set()
+    written = []
+    if args.table is not None:
+        written.append(write_table(args.table, result.extended))
+    if args.report is not None:
+        from gms_comp.app.live.report import write_report  # matplotlib only when asked for
+
+        written += write_report(result, doc, Path(args.report), cfg.cycle_period_s)
+    if args.json:
+        print(json.dumps(doc, indent=2))
+    else:
+        print(summary(doc))
+    for p in written:
+        print(f"wrote {p}", file=sys.stderr if args.json else sys.stdout)
+    return stop.exit_code if stop.signum is not None else 0
+
+
+def summary(doc: dict[str, Any]) -> str:
+    """The cause found and the reversal errors per feedforward, in um."""
+    diag = doc["diagnosis"]
+    effects = diag.get("effects", [])
+    cause = ", ".join(e.get("effect", "?") for e in effects) or "none"
+    rec = doc["recording"]
+    lines = [
+        f"recorded {rec['samples']} samples ({rec['samples_missing']} missing)",
+        f"cause: {cause} (verdict {diag.get('verdict')})",
+        "reversal test, peak / RMS following error:",
+    ]
+    for name, v in doc["verification"].items():
+        peak = v["peak_reversal_error_m"]
+        lines.append(
+            f"  {name:16s} {'-' if peak is None else f'{peak * 1e6:8.3f}'} um / "
+            f"{v['rms_error_m'] * 1e6:8.3f} um"
+        )
+    return "\n".join(lines)

@@ -1,0 +1,220 @@
+"""Commissioning an axis on the bus: record, diagnose, tables, verification, report.
+
+With no NC on the bus the compensator drives the axis itself (NC and SYNC master):
+
+1. it records the identification profile (:mod:`.recording`);
+2. it diagnoses the recording (``gms-comp diagnose``'s pipeline): the cause of what the
+   ball model does not explain, the extended model;
+3. it builds the feedforwards to compare: none, Coulomb+viscous fitted to the recording,
+   the physics table (the ball model reduced, for the whole guide) and the extended table;
+4. it runs the same reversal test (the ``[scenario]`` trajectory) once per feedforward,
+   sending it in each cycle with the NC's target (look-ahead from the program itself),
+   and scores the following error the drive reports: peak after the reversals, RMS.
+
+The axis is left stopped and disabled after each run, also on Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from firmware_bridge.profiles.cia402.motion import NcProgram
+from firmware_bridge.settings import CanConfig
+from gms_comp.app.live.recording import (
+    RecordedTrace,
+    drive_and_record,
+    profile_targets,
+    to_trace,
+)
+from gms_comp.arrays import FloatArray
+from gms_comp.gms import scaled
+from gms_comp.measured.diagnosis.run import Diagnosis, DiagnosisConfig, diagnose
+from gms_comp.measured.traces import Trace
+from gms_comp.runtime.observer import ForceModel, FrictionObserver
+from gms_comp.tables.reduction import reduce_to_gms
+from gms_comp.tables.table import GmsTable
+from sim.scenarios import Scenario, build_reference
+from sim.strategies.coulomb_viscous import CoulombViscous
+from sim.trajectories import Reference, reversals
+
+FEEDFORWARDS = ("none", "coulomb_viscous", "table", "extended")
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class Verification:
+    """One reversal test with one feedforward."""
+
+    name: str
+    peak_reversal_error_m: float | None
+    rms_error_m: float
+    samples_missing: int
+    position_m: FloatArray
+    target_m: FloatArray
+
+
+def fit_coulomb_viscous(trace: Trace, band_m_s: float) -> CoulombViscous:
+    """``F = F_c sign(v) + b v`` by least squares over the moving samples of ``trace``."""
+    v = (
+        trace.velocity_m_s
+        if trace.velocity_m_s is not None
+        else np.gradient(trace.position_m, trace.time_s)
+    )
+    ok = np.isfinite(v) & np.isfinite(trace.force_N) & (np.abs(v) > 10 * band_m_s)
+    design = np.column_stack([np.sign(v[ok]), v[ok]])
+    (coulomb, viscous), *_ = np.linalg.lstsq(design, trace.force_N[ok], rcond=None)
+    return CoulombViscous(float(coulomb), max(0.0, float(viscous)), band_m_s)
+
+
+def physics_table(s: Scenario) -> GmsTable:
+    """The ball model reduced to a GMS, its force that of the whole guide (ball sets)."""
+    table = reduce_to_gms(s.ball)
+    return _whole_axis(table, s.plant.ball_set_count)
+
+
+def _whole_axis(table: GmsTable, count: float) -> GmsTable:
+    return replace(table, params=scaled(table.params, count, 1.0))
+
+
+def reversal_targets(s: Scenario, period_s: float) -> FloatArray:
+    """The ``[scenario]`` trajectory as targets one per bus cycle."""
+    ref = build_reference(s)
+    t = np.arange(0.0, ref.duration_s, period_s)
+    return np.interp(t, ref.time_s, ref.position_m).astype(np.float64)
+
+
+def program_feedforward(
+    model: GmsTable | ForceModel | None, s: Scenario, period_s: float
+) -> Callable[[NcProgram], float | None]:
+    """The feedforward of ``model`` along the NC's program, ``look_ahead_cycles`` ahead of
+    the target about to be sent (the program is known: no extrapolation)."""
+    if model is None:
+        return lambda program: 0.0
+    comp = s.compensator
+    observer = FrictionObserver(model, s.plant.force_constant_N_per_A, period_s,
+                                comp.friction_level_scale, comp)  # fmt: skip
+    ahead = comp.look_ahead_cycles
+
+    def feedforward(program: NcProgram) -> float | None:
+        if not program.moving:
+            return 0.0
+        i = program.index + 1 + ahead
+        x, x_next = program.target_at(i), program.target_at(i + 1)
+        return observer.step(x, (x_next - x) / period_s)
+
+    return feedforward
+
+
+def verify(
+    cfg: CanConfig,
+    s: Scenario,
+    name: str,
+    model: GmsTable | ForceModel | None,
+    stop_request: threading.Event | None = None,
+) -> Verification:
+    """One reversal test with ``model`` as feedforward; its errors from the drive's TPDOs."""
+    period = cfg.cycle_period_s
+    targets = reversal_targets(s, period).tolist()
+    feedforward = program_feedforward(model, s, period)
+    recording, _ = drive_and_record(cfg, targets, stop_request=stop_request,
+                                    feedforward=feedforward)  # fmt: skip
+    target, position = recording.column("reference_position_m"), recording.column("position_m")
+    # the drive's position after SYNC k follows the target of SYNC k
+    error = target - position
+    moving = np.isfinite(target)
+    velocity = np.gradient(np.where(moving, target, 0.0))
+    ref = Reference(period, np.nan_to_num(target), velocity / period, np.zeros_like(target))
+    window = max(1, round(s.scenario.reversal_window_s / period))
+    peaks = [float(np.nanmax(np.abs(error[r : r + window]))) for r in reversals(ref)]
+    return Verification(
+        name=name,
+        peak_reversal_error_m=max(peaks, default=None),
+        rms_error_m=float(np.sqrt(np.nanmean(error**2))),
+        samples_missing=int(np.sum(~np.isfinite(error))),
+        position_m=position,
+        target_m=target,
+    )
+
+
+@dataclass(frozen=True)
+class Commissioning:
+    """Everything a commissioning run found."""
+
+    recorded: RecordedTrace
+    diagnosis: Diagnosis
+    extended: GmsTable
+    verifications: list[Verification]
+    coulomb_viscous: CoulombViscous
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``--json`` document: diagnosis, verification per feedforward, CAN figures."""
+        return {
+            "recording": self.recorded.sidecar,
+            "diagnosis": self.diagnosis.to_json(),
+            "coulomb_viscous": {
+                "coulomb_N": self.coulomb_viscous.coulomb_N,
+                "viscous_Ns_per_m": self.coulomb_viscous.viscous_Ns_per_m,
+            },
+            "verification": {
+                v.name: {
+                    "peak_reversal_error_m": v.peak_reversal_error_m,
+                    "rms_error_m": v.rms_error_m,
+                    "samples_missing": v.samples_missing,
+                }
+                for v in self.verifications
+            },
+        }
+
+
+def commission(
+    cfg: CanConfig,
+    s: Scenario,
+    extended_table: Callable[[Diagnosis], GmsTable],
+    scale: float = 1.0,
+    stop_request: threading.Event | None = None,
+    progress: Progress = lambda message: None,
+) -> Commissioning:
+    """Record, diagnose, build the tables, verify each feedforward (module docstring)."""
+    period = cfg.cycle_period_s
+    progress("recording the identification profile")
+    recording, _ = drive_and_record(cfg, profile_targets(period, scale).tolist(),
+                                    stop_request=stop_request)  # fmt: skip
+    recorded = to_trace(recording, cfg, s.plant, "commission: identification profile")
+    progress(f"diagnosing {recorded.sidecar['samples']} samples")
+    trace = present_samples(recorded.trace)
+    result = diagnose(trace, "friction", None, DiagnosisConfig())
+    extended = extended_table(result)
+    cv = fit_coulomb_viscous(trace, s.compensator.coulomb_velocity_band_m_s)
+    models: dict[str, GmsTable | ForceModel | None] = {
+        "none": None,
+        "coulomb_viscous": cv,
+        "table": physics_table(s),
+        "extended": extended,
+    }
+    runs = []
+    for name, model in models.items():
+        if stop_request is not None and stop_request.is_set():
+            break
+        progress(f"reversal test with feedforward {name}")
+        runs.append(verify(cfg, s, name, model, stop_request))
+    return Commissioning(recorded, result, extended, runs, cv)
+
+
+def present_samples(trace: Trace) -> Trace:
+    """The trace without its missing samples (rows the bus lost)."""
+    keep = np.isfinite(trace.position_m) & np.isfinite(trace.force_N)
+    if keep.all():
+        return trace
+    idx = np.flatnonzero(keep)
+
+    def cut(a: FloatArray | None) -> FloatArray | None:
+        return None if a is None else a[idx]
+
+    return Trace(trace.source, trace.time_s[idx], trace.position_m[idx], trace.force_N[idx],
+                 cut(trace.velocity_m_s), cut(trace.reference_position_m), cut(trace.current_A),
+                 None, trace.force_kind)  # fmt: skip
