@@ -80,9 +80,10 @@ def run(args: argparse.Namespace) -> int:
         result = commission(cfg, s, lambda r: extended_table(r, path), args.scale, stopping, say)
     doc = result.to_json()
     doc["interrupted"] = stopping.is_set()
-    written = []
+    written: list[Path] = []
     if args.table is not None:
-        written.append(write_table(args.table, result.extended))
+        write_table(args.table, result.extended)
+        written.append(Path(args.table))
     if args.report is not None:
         from gms_comp.app.live.report import write_report  # matplotlib only when asked for
 
