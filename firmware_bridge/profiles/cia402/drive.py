@@ -47,10 +47,10 @@ class Cia402Drive:
         operational (the emulator behind ``gms-comp stream``).
 
     At each SYNC it judges the feedforward RPDOs of the cycle (and, with an axis, takes
-    the NC's controlword and target from RPDO1); at the tick after every
-    ``status_every_cycles``-th SYNC (the TPDOs' transmission type) it sends TPDO1 with its
-    statusword, the tick just run and the session it holds (what the compensator dates
-    its frames by) and the current, and with an axis TPDO2 with position and velocity.
+    the NC's controlword and target from RPDO1), and at every ``status_every_cycles``-th
+    SYNC (the TPDOs' transmission type) it sends TPDO1 with its statusword, the last tick
+    it ran and the session it holds (what the compensator dates its frames by) and the
+    current, and with an axis TPDO2 with position and velocity, all sampled then.
     With an axis it runs the CiA 402 state machine: it follows the target and applies the
     feedforward only in "operation enabled", and faults when SYNC has been gone for
     :data:`SYNC_LOSS_S` or on a following error beyond the axis's limit (EMCY 0x8100,
@@ -68,7 +68,6 @@ class Cia402Drive:
         self.receiver = Cia402Receiver(self.node, self.codec, cfg, limit)
         self.status_every = cfg.status_every_cycles
         self._syncs = 0
-        self._status_due = False
         self.axis = axis
         self.power = PowerStateMachine()
         self.unit_m = read_object(self.node, POSITION_UNIT_PM) * PICOMETRE
@@ -93,7 +92,8 @@ class Cia402Drive:
                 self.power.command(controlword)
                 self.target_m = target * self.unit_m
             self._nc = None
-            self._status_due |= self._syncs % self.status_every == 0
+            if self._syncs % self.status_every == 0:
+                self._send_tpdos()  # sampled at SYNC, as TPDOs of transmission type 1 are
             self._syncs += 1
 
     def set_real_time(self, real_time: bool) -> None:
@@ -101,13 +101,10 @@ class Cia402Drive:
 
     def tick(self, now_s: float, cycle: int) -> tuple[int, bytes | None]:
         """One drive cycle; the applied 0x60B2 value and the RPDO applied fresh in it.
-        The axis moves one bus cycle; the TPDOs follow when a SYNC asked for them."""
+        The axis moves one bus cycle."""
         out = self.receiver.tick(now_s)
         if self.axis is not None:
             self._move(out, now_s)
-        if self._status_due:
-            self._status_due = False
-            self._send_tpdos()
         return out, self.receiver.applied_data
 
     def _move(self, offset_raw: int, now_s: float) -> None:
