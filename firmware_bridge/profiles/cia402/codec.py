@@ -13,8 +13,9 @@ PDOs, all of transmission type 1 (at every SYNC):
 - RPDO2, from the compensator: torque offset 0x60B2, the drive cycle it is meant for
   (0x2001), the compensator's session (0x2003) and the frame's mode (0x2004), by which
   the drive dates and claims each frame (:mod:`firmware_bridge.freshness`);
-- TPDO1, from the drive: statusword 0x6041, the drive cycle (0x2002, its count of
-  SYNCs), the session it holds (0x2005), current actual 0x6078 (per mille of 0x6075);
+- TPDO1, from the drive: statusword 0x6041, the last tick it ran (0x2002), the session
+  it holds (0x2005), current actual 0x6078 (per mille of 0x6075), the counter of the
+  SYNC it answers (0x2006: a recorder files the sample under its SYNC, however late);
 - TPDO2, from the drive: position actual 0x6064 and velocity actual 0x606C
   (increments of 0x2010 pm, increments per second).
 
@@ -43,6 +44,7 @@ TARGET_POSITION, POSITION_ACTUAL, VELOCITY_ACTUAL = 0x607A, 0x6064, 0x606C
 CURRENT_ACTUAL, RATED_CURRENT = 0x6078, 0x6075
 TORQUE_OFFSET = 0x60B2
 FF_CYCLE, DRIVE_CYCLE, FF_SESSION, FF_MODE, SESSION_HELD = 0x2001, 0x2002, 0x2003, 0x2004, 0x2005
+SYNC_ANSWERED = 0x2006
 POSITION_UNIT_PM, FORCE_CONSTANT_MN_PER_A = 0x2010, 0x2011
 PRODUCER_HEARTBEAT = 0x1017
 ABORT_CONNECTION_OPTION = 0x6007
@@ -77,8 +79,14 @@ FF_RPDO = PdoLayout(
 STATUS_TPDO = PdoLayout(
     0x1800,
     0x1A00,
-    ((STATUSWORD, 16), (DRIVE_CYCLE, 16), (SESSION_HELD, 8), (CURRENT_ACTUAL, 16)),
-    struct.Struct("<HHBh"),
+    (
+        (STATUSWORD, 16),
+        (DRIVE_CYCLE, 16),
+        (SESSION_HELD, 8),
+        (CURRENT_ACTUAL, 16),
+        (SYNC_ANSWERED, 8),
+    ),
+    struct.Struct("<HHBhB"),
 )
 MOTION_TPDO = PdoLayout(
     0x1801, 0x1A01, ((POSITION_ACTUAL, 32), (VELOCITY_ACTUAL, 32)), struct.Struct("<ii")
@@ -103,6 +111,7 @@ class DriveReport:
     cycle: int
     session: int
     current_raw: int
+    sync_counter: int  # the counter byte of the SYNC it answers (0: the SYNC had none)
 
 
 def default_eds_path() -> Path:
@@ -181,10 +190,12 @@ class Cia402Codec:
         return Command(int(cycle), int(raw), int(session), Mode(mode))
 
     def status_frame(
-        self, statusword: int, cycle: int, session: int, current_raw: int
+        self, statusword: int, cycle: int, session: int, current_raw: int, sync_counter: int = 0
     ) -> can.Message:
         """TPDO1 of the drive."""
-        data = STATUS_TPDO.packing.pack(statusword, cycle % STAMP_MODULUS, session, current_raw)
+        data = STATUS_TPDO.packing.pack(
+            statusword, cycle % STAMP_MODULUS, session, current_raw, sync_counter
+        )
         return can.Message(arbitration_id=self.status_cob_id, data=data, is_extended_id=False)
 
     @staticmethod

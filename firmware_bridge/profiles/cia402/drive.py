@@ -92,8 +92,8 @@ class Cia402Drive:
                 self.power.command(controlword)
                 self.target_m = target * self.unit_m
             self._nc = None
-            if self._syncs % self.status_every == 0:
-                self._send_tpdos()  # sampled at SYNC, as TPDOs of transmission type 1 are
+            if self._syncs % self.status_every == 0:  # sampled at SYNC, as type-1 TPDOs are
+                self._send_tpdos(msg.data[0] if len(msg.data) == 1 else 0)
             self._syncs += 1
 
     def set_real_time(self, real_time: bool) -> None:
@@ -129,7 +129,7 @@ class Cia402Drive:
         state = PowerState.OPERATION_ENABLED if enabled else PowerState.SWITCH_ON_DISABLED
         return state.value | 0x0200
 
-    def _send_tpdos(self) -> None:
+    def _send_tpdos(self, sync_counter: int) -> None:
         receiver = self.receiver
         sample = self.sample
         current_raw = (
@@ -142,6 +142,7 @@ class Cia402Drive:
             receiver.last_cycle,
             receiver.clock.session,
             max(-_INT16, min(_INT16, current_raw)),
+            sync_counter,
         )
         network = self.node.network
         network.send_message(status.arbitration_id, bytes(status.data))

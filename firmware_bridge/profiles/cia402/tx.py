@@ -7,7 +7,7 @@ from typing import Any
 import can
 
 from firmware_bridge.freshness import DriveTime, Mode
-from firmware_bridge.profiles.base import Claim, SyncCounter, sync_slot
+from firmware_bridge.profiles.base import SYNC_COUNTER_OVERFLOW, Claim, SyncCounter, sync_slot
 from firmware_bridge.profiles.cia402.codec import (
     FF_RPDO,
     POSITION_UNIT_PM,
@@ -85,9 +85,10 @@ class Cia402Tx:
                     frames.append(rpdo)
                     self.observed.take(self.codec, rpdo)
                     target = self.observed.target_m
-            frames.append(self.codec.sync_frame())
+            counter = cycle % SYNC_COUNTER_OVERFLOW + 1  # CiA 301: 1..240
+            frames.append(self.codec.sync_frame(counter))
             if self.recorder is not None:
-                self.recorder.sync(cycle, target)
+                self.recorder.sync(cycle, counter, target)
         if cycle % self.heartbeat_cycles == 0:
             frames.append(self.codec.heartbeat_frame())
         return frames
@@ -100,7 +101,7 @@ class Cia402Tx:
         with the one-byte SYNC counter from the NC (:class:`~.nc.SyncProducer`).
         """
         rate = 1.0 / self.cfg.cycle_period_s
-        sync_bytes = 0 if self.cfg.sync_master else 1
+        sync_bytes = 1  # with the CiA 301 SYNC counter, whoever produces it
         return [
             (FF_RPDO.size, rate),
             (sync_bytes, rate),
@@ -123,7 +124,7 @@ class Cia402Tx:
             assert self.sync is not None
             self.sync.saw(msg.timestamp, bytes(msg.data))
             if self.recorder is not None:
-                self.recorder.sync(self._follower_slot())
+                self.recorder.sync(self._follower_slot(), self.sync.last_counter or 0)
         elif cob_id == 0x80 + self.cfg.drive_node_id and len(msg.data) >= 2:
             self.emcy_received.append(int.from_bytes(msg.data[:2], "little"))
         elif cob_id == 0x700 + self.cfg.drive_node_id and msg.data[:1] != _BOOTUP:

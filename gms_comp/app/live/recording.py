@@ -109,7 +109,7 @@ def drive_and_record(
                 f"drive node {cfg.drive_node_id} did not follow the NC's program "
                 f"(state {tx.observed.state}): is it enabled, in CSP mode, without a fault?"
             )
-        return tx.recorder.recording, report
+        return tx.recorder.finish(), report
 
 
 def listen_and_record(
@@ -127,7 +127,7 @@ def listen_and_record(
             msg = bus.recv(timeout=min(remaining, 0.05))
             if msg is not None:
                 tx.on_reply(msg, time.time())
-    return recorder.recording
+    return recorder.finish()
 
 
 def to_trace(
