@@ -32,6 +32,7 @@ from firmware_bridge.freshness import transport_cycles
 from firmware_bridge.profiles.base import (
     CompensatorTx,
     Device,
+    DriveSide,
     get_profile,
 )
 from firmware_bridge.settings import CanConfig
@@ -52,10 +53,14 @@ CHANNEL_CHECK_S = 0.02  # listen this long (at least 10 cycles) for another comp
 CONNECT_CYCLES = 10  # the handshake takes 3 cycles, 4 for a SYNC follower
 
 
+DriveFactory = Callable[[CanConfig, can.BusABC], DriveSide]
+"""Makes the built-in drive's side on its bus (a drive hosting a simulated axis)."""
+
+
 class Rig:
     """Streamer (through a fault injector) and, unless ``builtin_drive`` is false,
     the drive emulator (and the NC's SYNC, when the compensator follows it) on one
-    CAN channel."""
+    CAN channel; ``drive`` makes the emulator's side (default: the profile's drive)."""
 
     def __init__(
         self,
@@ -64,6 +69,7 @@ class Rig:
         seed: int = 0,
         log_path: str | Path | None = None,
         builtin_drive: bool = True,
+        drive: DriveFactory | None = None,
     ) -> None:
         self.cfg = cfg
         self.tx: CompensatorTx = make_tx(cfg)
@@ -86,7 +92,8 @@ class Rig:
                 notifier = can.Notifier(monitor, [can.Logger(str(log_path))])
                 self._stack.callback(notifier.stop)
             if builtin_drive:
-                self.emulator = DriveEmulator(cfg, self._stack.enter_context(open_bus(cfg)))
+                bus = self._stack.enter_context(open_bus(cfg))
+                self.emulator = DriveEmulator(cfg, bus, drive(cfg, bus) if drive else None)
             if builtin_drive and self.tx.follows_sync:
                 nc_bus = self._stack.enter_context(open_bus(cfg))
                 self.nc_sync = get_profile(cfg.profile).make_nc(cfg, nc_bus)

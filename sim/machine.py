@@ -164,7 +164,10 @@ class CspAxis:
         step = (target_position_m - previous) / self.substeps
         accel = (target_position_m - 2 * previous + before) / self.cycle_period_s**2
         self._hold_hidden_force()
-        for i in range(1, self.substeps + 1):
+        # the loop is one servo cycle ahead of its reference (its velocity feedforward
+        # moves the axis through the servo cycle): at the end of the bus cycle it stands
+        # at the target
+        for i in range(self.substeps):
             if enabled:
                 command = self.controller.step(
                     self.position_m, previous + i * step, accel, torque_offset_A

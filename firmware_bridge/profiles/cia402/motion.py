@@ -105,11 +105,13 @@ class NcProgram:
     _step: int = 0  # which command of the enable sequence
     _waited: int = 0
     _held: int = 0
+    _placed: bool = False
 
     def start_at(self, position_m: float | None) -> None:
-        """Where the axis stands (its position actual, while enabling): the origin."""
-        if self.phase is Phase.ENABLING and position_m is not None:
-            self.origin_m = position_m
+        """Where the axis stands (its first position actual seen): the origin, fixed then
+        (the targets sent while enabling hold it still)."""
+        if not self._placed and position_m is not None:
+            self.origin_m, self._placed, self._waited = position_m, True, 0
 
     def target_at(self, index: int) -> float:
         """Target ``index`` (clipped to the program), in absolute position."""
@@ -118,7 +120,13 @@ class NcProgram:
 
     def rpdo(self, codec: Cia402Codec, seen: PowerState | None) -> can.Message | None:
         """The RPDO1 of this cycle, given the state the drive showed last (None: unknown);
-        None once the program is over."""
+        None before the drive has reported its position (the origin) and once the program
+        is over."""
+        if not self._placed:
+            self._waited += 1
+            if self._waited > ENABLE_WAIT_CYCLES:
+                self.phase = Phase.FAILED  # a drive that does not report its position
+            return None
         controlword, target = self._next(seen)
         if controlword is None:
             return None

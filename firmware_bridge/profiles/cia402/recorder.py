@@ -1,7 +1,9 @@
 """Recording a CiA 402 axis per SYNC: the NC's target and the drive's TPDOs, one row each.
 
-Each SYNC opens a row under its slot (its time) and its CiA 301 counter byte; the target
-is the NC's RPDO1 sent before that SYNC. The drive samples its TPDOs at SYNC and sends
+Each SYNC opens a row under its slot (its time) and its CiA 301 counter byte. The drive
+samples its TPDOs at SYNC, before it moves on to the target that SYNC brought: the row's
+target is therefore the one of the SYNC before (the NC's RPDO1 sent before it), which the
+sampled state has followed for a cycle. The drive samples its TPDOs at SYNC and sends
 them at once: TPDO1 (statusword, current actual) names the SYNC it answers by that
 counter (object 0x2006), so it is filed under its own row however late it comes (counted
 ``late`` when it came after the next SYNC); TPDO2 (position and velocity actual) goes
@@ -78,6 +80,7 @@ class Recorder:
         self._newest: int | None = None  # the counter of the last SYNC
         self._for_motion: _Row | None = None  # the row of the TPDO1 just before
         self._pending_target = math.nan  # the NC's RPDO1 seen since the last SYNC
+        self._followed = math.nan  # the target of the last SYNC: what the drive follows
 
     def frame(self, msg: can.Message) -> None:
         """One frame from the bus: the NC's target, or a TPDO for its row."""
@@ -106,16 +109,17 @@ class Recorder:
                 row.position_m, row.velocity_m_s = position * unit, velocity * unit
 
     def sync(self, slot: int, counter: int, target_m: float | None = None) -> None:
-        """A SYNC of time slot ``slot`` with counter byte ``counter`` (0: none): a new row
-        with ``target_m`` (default: the NC's RPDO1 seen since the last SYNC)."""
+        """A SYNC of time slot ``slot`` with counter byte ``counter`` (0: none), bringing
+        ``target_m`` (default: the NC's RPDO1 seen since the last SYNC): a new row, whose
+        target is the previous SYNC's."""
         key = counter if counter else -slot  # without a counter, rows close in order
         if key in self._open:
             self._close(self._open.pop(key))
         while len(self._open) >= OPEN_ROWS:
             self._close(self._open.popitem(last=False)[1])
         target = self._pending_target if target_m is None else target_m
-        self._open[key] = _Row(slot, target)
-        self._newest, self._pending_target = key, math.nan
+        self._open[key] = _Row(slot, self._followed)
+        self._newest, self._pending_target, self._followed = key, math.nan, target
 
     def finish(self) -> Recording:
         """Close every open row; the recording, rows in slot order."""

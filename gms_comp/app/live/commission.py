@@ -3,8 +3,9 @@
 With no NC on the bus the compensator drives the axis itself (NC and SYNC master):
 
 1. it records the identification profile (:mod:`.recording`);
-2. it diagnoses the recording (``gms-comp diagnose``'s pipeline): the cause of what the
-   ball model does not explain, the extended model;
+2. it diagnoses the recording (``gms-comp diagnose``'s pipeline) with the physics table
+   as its baseline: the table calibrated to the axis, the cause of what it does not
+   explain, the extended model;
 3. it builds the feedforwards to compare: none, Coulomb+viscous fitted to the recording,
    the physics table (the ball model reduced, for the whole guide) and the extended table;
 4. it runs the same reversal test (the ``[scenario]`` trajectory) once per feedforward,
@@ -24,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from firmware_bridge.profiles.cia402.motion import NcProgram
+from firmware_bridge.session import DriveFactory
 from firmware_bridge.settings import CanConfig
 from gms_comp.app.live.recording import (
     RecordedTrace,
@@ -40,7 +42,6 @@ from gms_comp.tables.reduction import reduce_to_gms
 from gms_comp.tables.table import GmsTable
 from sim.scenarios import Scenario, build_reference
 from sim.strategies.coulomb_viscous import CoulombViscous
-from sim.trajectories import Reference, reversals
 
 FEEDFORWARDS = ("none", "coulomb_viscous", "table", "extended")
 Progress = Callable[[str], None]
@@ -110,27 +111,39 @@ def program_feedforward(
     return feedforward
 
 
+def _reversals(target: FloatArray) -> list[int]:
+    """Rows where the target's motion changes direction (rows without a target skipped)."""
+    rows = np.flatnonzero(np.isfinite(target))
+    step = np.diff(target[rows])
+    moving = np.flatnonzero(step != 0.0)
+    signs = np.sign(step[moving])
+    return [int(rows[moving[i + 1]]) for i in np.flatnonzero(signs[1:] != signs[:-1])]
+
+
 def verify(
     cfg: CanConfig,
     s: Scenario,
     name: str,
     model: GmsTable | ForceModel | None,
     stop_request: threading.Event | None = None,
+    drive: DriveFactory | None = None,
 ) -> Verification:
     """One reversal test with ``model`` as feedforward; its errors from the drive's TPDOs."""
     period = cfg.cycle_period_s
     targets = reversal_targets(s, period).tolist()
     feedforward = program_feedforward(model, s, period)
-    recording, _ = drive_and_record(cfg, targets, stop_request=stop_request,
-                                    feedforward=feedforward)  # fmt: skip
-    target, position = recording.column("reference_position_m"), recording.column("position_m")
-    # the drive's position after SYNC k follows the target of SYNC k
-    error = target - position
-    moving = np.isfinite(target)
-    velocity = np.gradient(np.where(moving, target, 0.0))
-    ref = Reference(period, np.nan_to_num(target), velocity / period, np.zeros_like(target))
     window = max(1, round(s.scenario.reversal_window_s / period))
-    peaks = [float(np.nanmax(np.abs(error[r : r + window]))) for r in reversals(ref)]
+    recording, _ = drive_and_record(
+        cfg, targets, stop_request=stop_request, feedforward=feedforward, drive=drive
+    )
+    target, position = recording.column("reference_position_m"), recording.column("position_m")
+    # the drive's position at a SYNC has followed the target of the SYNC before (the row's)
+    error = target - position
+    peaks = [
+        float(np.nanmax(np.abs(error[r : r + window])))
+        for r in _reversals(target)
+        if np.isfinite(error[r : r + window]).any()
+    ]
     return Verification(
         name=name,
         peak_reversal_error_m=max(peaks, default=None),
@@ -178,22 +191,26 @@ def commission(
     scale: float = 1.0,
     stop_request: threading.Event | None = None,
     progress: Progress = lambda message: None,
+    drive: DriveFactory | None = None,
 ) -> Commissioning:
-    """Record, diagnose, build the tables, verify each feedforward (module docstring)."""
+    """Record, diagnose, build the tables, verify each feedforward (module docstring);
+    with ``drive``, on a built-in drive stepped cycle by cycle."""
     period = cfg.cycle_period_s
     progress("recording the identification profile")
-    recording, _ = drive_and_record(cfg, profile_targets(period, scale).tolist(),
-                                    stop_request=stop_request)  # fmt: skip
+    targets = profile_targets(period, scale).tolist()
+    recording, _ = drive_and_record(cfg, targets, stop_request=stop_request, drive=drive)
     recorded = to_trace(recording, cfg, s.plant, "commission: identification profile")
     progress(f"diagnosing {recorded.sidecar['samples']} samples")
     trace = present_samples(recorded.trace)
-    result = diagnose(trace, "friction", None, DiagnosisConfig())
+    physics = physics_table(s)
+    # the physics table is the baseline the diagnosis calibrates and extends
+    result = diagnose(trace, "drive", None, DiagnosisConfig(), physics.params)
     extended = extended_table(result)
     cv = fit_coulomb_viscous(trace, s.compensator.coulomb_velocity_band_m_s)
     models: dict[str, GmsTable | ForceModel | None] = {
         "none": None,
         "coulomb_viscous": cv,
-        "table": physics_table(s),
+        "table": physics,
         "extended": extended,
     }
     runs = []
@@ -201,7 +218,7 @@ def commission(
         if stop_request is not None and stop_request.is_set():
             break
         progress(f"reversal test with feedforward {name}")
-        runs.append(verify(cfg, s, name, model, stop_request))
+        runs.append(verify(cfg, s, name, model, stop_request, drive))
     return Commissioning(recorded, result, extended, runs, cv)
 
 
