@@ -27,7 +27,7 @@ GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
 
 def identification_profile(
-    sample_rate_Hz: float = 1000.0, scale: float = 1.0
+    sample_rate_Hz: float = 1000.0, scale: float = 1.0, max_acceleration_m_s2: float | None = None
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """A recommended identification trajectory ``(t_s, x_m, v_m_s)``.
 
@@ -44,7 +44,10 @@ def identification_profile(
 
     def move(dx: float, speed: float) -> None:
         nonlocal x
-        n = max(2, round(abs(dx) / speed / dt))
+        duration = abs(dx) / speed
+        if max_acceleration_m_s2 is not None:  # a cosine ramp peaks at pi^2 dx / (2 T^2)
+            duration = max(duration, math.pi * math.sqrt(abs(dx) / (2 * max_acceleration_m_s2)))
+        n = max(2, round(duration / dt))
         ramp = 0.5 - 0.5 * np.cos(np.linspace(0, np.pi, n + 1)[1:])  # smooth start and stop
         segments.append(x + dx * ramp)
         x += dx

@@ -46,6 +46,9 @@ from sim.plant import PlantConfig
 from sim.tracegen import identification_profile
 
 NC_LISTEN_S = 0.3  # a SYNC within this long means an NC runs the bus
+PROFILE_MAX_ACCELERATION_M_S2 = 0.05
+"""The identification profile on a drive: moves stretched below this acceleration, so the
+inertia in the current stays small beside the friction (30 kg: 1.5 N against 11 N)."""
 HOLD_CYCLES = 200
 
 
@@ -70,8 +73,9 @@ def nc_on_bus(cfg: CanConfig, listen_s: float = NC_LISTEN_S) -> bool:
 
 
 def profile_targets(period_s: float, scale: float) -> FloatArray:
-    """The identification profile as targets one per bus cycle, from rest at 0."""
-    _, x, _ = identification_profile(1.0 / period_s, scale)
+    """The identification profile as targets one per bus cycle, from rest at 0, its moves
+    gentle enough for a drive's current (:data:`PROFILE_MAX_ACCELERATION_M_S2`)."""
+    _, x, _ = identification_profile(1.0 / period_s, scale, PROFILE_MAX_ACCELERATION_M_S2)
     return x
 
 
