@@ -49,12 +49,17 @@ def run_stream(
         return stream_on(rig, source, duration_s, clock)
 
 
+Progress = Callable[[float, dict[str, Any]], None]
+"""Told every second of the stream: the stream's time in s and the figures so far."""
+
+
 def stream_on(
     rig: Rig,
     source: FeedforwardSource,
     duration_s: float,
     clock: Callable[[], float] = time.perf_counter,
     stop_request: threading.Event | None = None,
+    progress: Progress | None = None,
 ) -> dict[str, Any]:
     """Stream ``source`` over an open ``rig`` for ``duration_s`` in real time, then ramp down.
 
@@ -71,6 +76,8 @@ def stream_on(
     stop_request
         Set (by a signal handler) to end the stream early: the same clean stop,
         ramp to zero and release. A Ctrl-C inside the loop does the same.
+    progress
+        Told every second of the stream (the stream's time, the frames so far).
 
     Returns
     -------
@@ -90,6 +97,7 @@ def stream_on(
     rig.streamer.send_clock = time.time
     rig.realtime = True
     stop_request = stop_request if stop_request is not None else threading.Event()
+    rig.progress = _Ticker(rig, progress)
     stop = threading.Event()
     devices = [
         threading.Thread(target=device.run, args=(stop, time.time), daemon=True)
@@ -109,6 +117,21 @@ def stream_on(
         for device in devices:
             device.join()
     return {**rig.report(), **timing, "interrupted": stop_request.is_set()}
+
+
+class _Ticker:
+    """Calls a progress callback once per second of stream time."""
+
+    def __init__(self, rig: Rig, progress: Progress | None) -> None:
+        self.rig, self.progress, self.next_s = rig, progress, 1.0
+
+    def __call__(self, time_s: float) -> None:
+        if self.progress is None or time_s < self.next_s:
+            return
+        self.next_s = float(int(time_s)) + 1.0
+        streamer = self.rig.streamer
+        self.progress(time_s, {"frames_sent": streamer.frames_sent,
+                               "inputs_missing": streamer.inputs_missing})  # fmt: skip
 
 
 def _ends(cycle: int, n_cycles: int, stop_request: threading.Event) -> int:
@@ -189,6 +212,7 @@ def _control_loop(
         current = source(scheduled) if cycle < end else None
         rig.send_cycle(cycle, current, start, hold=cycle < end and current is None)
         stats.record(start - scheduled, since_start() - start)
+        rig.progress(scheduled)
         # a late loop does not catch up with a burst: it resumes at the current slot
         behind = int(since_start() / period) - cycle
         stats.skipped += max(0, behind - 1)
@@ -270,6 +294,7 @@ def _follower_loop(
         rig.send_cycle(cycle, current, cycle * period, hold=cycle < end and current is None)
         stats.record(lateness, clock() - start)
         stats.answered(time.time() - sync.last_s)
+        rig.progress(cycle * period)
 
     with _released_when_taken(rig, lambda: (cycle + 1, (cycle + 1) * period)):
         while not sync_lost and (

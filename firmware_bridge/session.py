@@ -79,6 +79,7 @@ class Rig:
         self.emulator: DriveEmulator | None = None
         self.nc_sync: Device | None = None
         self.realtime = False  # set by run_stream: the drive applies at its next cycle
+        self.progress: Callable[[float], None] = lambda time_s: None  # set by stream_on
         try:
             comp_bus = self._stack.enter_context(open_bus(cfg))
             self.faulty = FaultyBus(

@@ -8,8 +8,11 @@ profile codecs only.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
+
+import can
 
 from firmware_bridge.profiles import PROFILES
 from gms_comp.config import (
@@ -21,6 +24,8 @@ from gms_comp.config import (
 )
 
 MIN_CYCLE_S = 1e-4  # 10 kHz: beyond what classic CAN carries, and the loop's time budget
+AUTO = "auto"
+FALLBACK_INTERFACE, FALLBACK_CHANNEL = "virtual", "gms-comp"
 ProfileName = str  # a key of firmware_bridge.profiles.PROFILES
 
 
@@ -37,6 +42,10 @@ class CanConfig:
     ``ramp_time_s``, so the feedforward is zero ``rx_timeout_s + ramp_time_s``
     after the last valid frame. The streamer uses the same ramp on stop or fault.
 
+    ``interface`` and ``channel`` are python-can's; ``"auto"`` takes python-can's own
+    configuration (``CAN_INTERFACE``, ``CAN_CHANNEL``, ``~/.canrc``), as its tools do, and
+    without one the ``virtual`` interface on channel ``gms-comp``.
+
     ``sync_master`` (cia402): the compensator produces SYNC; when false, the NC
     does and the compensator sends one RPDO in answer to each SYNC, which the
     drive applies at the next SYNC. ``heartbeat_period_s`` is the period of both
@@ -45,8 +54,8 @@ class CanConfig:
     """
 
     profile: ProfileName = field(default="cia402", metadata={"check": _registered})
-    interface: str = "virtual"
-    channel: str = "gms-comp"
+    interface: str = AUTO
+    channel: str = AUTO
     bitrate_bit_s: int = field(default=1_000_000, metadata=in_range(10_000, 8_000_000))
     cycle_period_s: float = field(default=1e-3, metadata=in_range(MIN_CYCLE_S, 1.0))
     max_current_A: float = field(default=1.0, metadata=in_range(1e-3, 1e3))
@@ -91,12 +100,31 @@ class CanConfig:
         return (self.timeout_cycles + self.ramp_cycles) * self.cycle_period_s
 
 
+def resolved(cfg: CanConfig) -> CanConfig:
+    """``cfg`` with ``"auto"`` interface and channel taken from python-can's configuration
+    (environment, ``~/.canrc``), else the ``virtual`` interface on ``gms-comp``."""
+    if AUTO not in (cfg.interface, cfg.channel):
+        return cfg
+    try:
+        found: dict[str, Any] = dict(can.util.load_config())
+    except (can.CanError, ValueError, OSError):
+        found = {}
+    interface = found.get("interface") or FALLBACK_INTERFACE
+    channel = found.get("channel") or FALLBACK_CHANNEL
+    return replace(
+        cfg,
+        interface=interface if cfg.interface == AUTO else cfg.interface,
+        channel=str(channel) if cfg.channel == AUTO else cfg.channel,
+    )
+
+
 def cycles_within(duration_s: float, period_s: float) -> int:
     """Number of whole periods that fit in ``duration_s`` (at least one)."""
     return max(1, math.floor(duration_s / period_s + 1e-9))
 
 
 def load_can_config(path: str | Path | None = None) -> CanConfig:
-    """Load the ``[can]`` section of ``path`` (default: the packaged config)."""
+    """Load the ``[can]`` section of ``path`` (default: the packaged config), ``"auto"``
+    interface and channel resolved (:func:`resolved`)."""
     p = Path(path) if path is not None else default_config_path()
-    return parse_section(read_toml(p), p, "can", CanConfig)
+    return resolved(parse_section(read_toml(p), p, "can", CanConfig))

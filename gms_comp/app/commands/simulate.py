@@ -89,8 +89,11 @@ def register(subparsers: Any) -> None:
 
 
 @contextlib.contextmanager
-def _links(s: Scenario, via_can: bool) -> Iterator[Callable[[int], FeedforwardLink]]:
-    """Link factory for the runs: direct (with the configured delay) or over CAN."""
+def _links(
+    s: Scenario, via_can: bool, can_report: dict[str, Any]
+) -> Iterator[Callable[[int], FeedforwardLink]]:
+    """Link factory for the runs: direct (with the configured delay) or over CAN; over CAN,
+    ``can_report`` gets the frames of every link, summed, before the buses close."""
     if not via_can:
         yield DirectLink
         return
@@ -98,15 +101,18 @@ def _links(s: Scenario, via_can: bool) -> Iterator[Callable[[int], FeedforwardLi
     from firmware_bridge.settings import load_can_config
 
     cfg = load_can_config(s.path)
+    links: list[CanFeedforwardLink] = []
     with contextlib.ExitStack() as stack:
 
         def open_link(_delay_cycles: int) -> FeedforwardLink:
             # The bus brings its own transport delay; the configured one is not added.
             # One frame per CAN cycle, held by the drive over the servo cycles between.
             link = CanFeedforwardLink(cfg, servo_period_s=s.controller.servo_period_s)
-            return stack.enter_context(link)
+            links.append(stack.enter_context(link))
+            return link
 
         yield open_link
+        can_report.update(_can_totals([link.report() for link in links], cfg.profile))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -121,7 +127,8 @@ def run(args: argparse.Namespace) -> int:
 
         return note
 
-    with _links(s, args.via_can) as link:
+    can_report: dict[str, Any] = {}
+    with _links(s, args.via_can, can_report) as link:
         runs = [
             run_strategies(
                 axis,
@@ -150,6 +157,7 @@ def run(args: argparse.Namespace) -> int:
             "via_can": bool(args.via_can),
         },
         "strategies": strategies,
+        **({"can": can_report} if can_report else {}),
         "gms_peak_reversal_reduction": _reductions(scores),
         "simulated_s": simulated_s,
         "elapsed_s": elapsed_s,
@@ -167,6 +175,8 @@ def run(args: argparse.Namespace) -> int:
         sys.stdout.write(json.dumps(report, indent=2) + "\n")
     else:
         print(_what(report, len(results)))
+        if can_report:
+            print(_can_line(can_report))
         print(_table(scores))
         if contour:
             print(_circularity_table(contour))
@@ -187,6 +197,33 @@ def _what(report: dict[str, Any], strategies: int) -> str:
         f"{path}): {strategies} strategies{axes} x {sc['duration_s']:.3g} s = "
         f"{report['simulated_s']:.3g} s of axis time in {report['elapsed_s']:.3g} s "
         f"({_factor(report['realtime_factor'])} real time, set-up included)"
+    )
+
+
+def _can_totals(reports: list[dict[str, Any]], profile: str) -> dict[str, Any]:
+    """The CAN figures of all links of a run, summed."""
+    rejected: dict[str, int] = {}
+    for r in reports:
+        for reason, n in r["frames_rejected"].items():
+            rejected[reason] = rejected.get(reason, 0) + n
+    return {
+        "profile": profile,
+        "links": len(reports),
+        "frames_sent": sum(r["frames_sent"] for r in reports),
+        "frames_applied": sum(r["frames_applied"] for r in reports),
+        "frames_rejected": rejected,
+        "stale_or_corrupt_applied": sum(r["stale_or_corrupt_applied"] for r in reports),
+        "max_applied_current_A": max((r["max_applied_current_A"] for r in reports), default=0.0),
+    }
+
+
+def _can_line(can: dict[str, Any]) -> str:
+    """One line of CAN figures for the summary."""
+    refused = sum(can["frames_rejected"].values())
+    return (
+        f"CAN ({can['profile']}, {can['links']} links): {can['frames_sent']} frames sent, "
+        f"{can['frames_applied']} applied, {refused} refused, stale or corrupt applied: "
+        f"{can['stale_or_corrupt_applied']}, max {can['max_applied_current_A']:.3f} A"
     )
 
 

@@ -14,6 +14,7 @@ import json
 import math
 import sys
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -120,7 +121,8 @@ def run(args: argparse.Namespace) -> int:
             with rig.watching():
                 source = gms_observer_source(config_path, cfg, args.duration)
             with stop.deferred() as stop_request:
-                report = stream_on(rig, source, args.duration, stop_request=stop_request)
+                report = stream_on(rig, source, args.duration, stop_request=stop_request,
+                                   progress=_progress(args.duration))  # fmt: skip
     report["source"] = "gms_observer"
     text = json.dumps(report, indent=2, sort_keys=True)
     print(text if args.json else summary(report, cfg))
@@ -139,6 +141,14 @@ def run(args: argparse.Namespace) -> int:
         )
         return stop.exit_code
     return 1 if unsafe else 0
+
+
+def _progress(duration_s: float) -> Callable[[float, dict[str, Any]], None]:
+    def show(time_s: float, figures: dict[str, Any]) -> None:
+        print(f"stream: {time_s:.0f} s of {duration_s:g} s, {figures['frames_sent']} frames "
+              "sent", file=sys.stderr, flush=True)  # fmt: skip
+
+    return show
 
 
 def summary(report: dict[str, Any], cfg: CanConfig) -> str:

@@ -13,6 +13,7 @@ extrapolated guess.
 from __future__ import annotations
 
 import math
+import sys
 import threading
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal, cast
@@ -63,6 +64,14 @@ class Follower:
         return self.observer.step(ahead, v)
 
 
+def _progress(time_s: float, figures: dict[str, Any]) -> None:
+    line = (
+        f"run: {time_s:.0f} s, {figures['frames_sent']} frames sent, "
+        f"{figures['inputs_missing']} SYNCs without input"
+    )
+    print(line, file=sys.stderr, flush=True)
+
+
 def follow(
     cfg: CanConfig,
     observer: FrictionObserver | None,
@@ -77,7 +86,8 @@ def follow(
     with Rig(cfg, builtin_drive=False) as rig:
         tx = cast(Cia402Tx, rig.tx)
         source = Follower(tx, observer, feed, look_ahead_cycles, cfg.cycle_period_s)
-        report = stream_on(rig, source, duration_s, stop_request=stop_request)
+        report = stream_on(rig, source, duration_s, stop_request=stop_request,
+                           progress=_progress)  # fmt: skip
     errors = np.asarray(source.errors_m[10:])
     report.update(
         feed=feed,
