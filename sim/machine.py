@@ -77,11 +77,8 @@ def load_machine(path: str | Path | None = None) -> Machine:
     s = load_scenario(path)
     doc = read_toml(s.path)
     section: Mapping[str, Any] = doc.get("machine", {})
-    if not isinstance(section, Mapping):
-        raise ConfigError(s.path, "machine", "must be a table")
+    cfg = parse_section(machine_section(doc), s.path, "machine", MachineConfig)
     own = {f.name for f in dataclasses.fields(MachineConfig)}
-    cfg = parse_section({"machine": {k: v for k, v in section.items() if k in own}},
-                        s.path, "machine", MachineConfig)  # fmt: skip
     extra = {k: v for k, v in section.items() if k not in own}
     effect = None
     if cfg.effect != "none":
@@ -92,6 +89,16 @@ def load_machine(path: str | Path | None = None) -> Machine:
     elif extra:
         raise ConfigError(s.path, f"machine.{sorted(extra)[0]}", "unknown key (effect is none)")
     return Machine(s, cfg, effect)
+
+
+def machine_section(doc: Mapping[str, Any]) -> dict[str, Any]:
+    """``doc`` with ``[machine]`` cut to :class:`MachineConfig`'s own keys (the rest are the
+    effect's parameters, which :func:`load_machine` checks)."""
+    section = doc.get("machine")
+    if not isinstance(section, Mapping):
+        return dict(doc)
+    own = {f.name for f in dataclasses.fields(MachineConfig)}
+    return {**doc, "machine": {k: v for k, v in section.items() if k in own}}
 
 
 @dataclass(frozen=True)

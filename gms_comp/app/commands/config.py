@@ -34,6 +34,7 @@ from gms_comp.runtime.observer import CompensatorConfig
 from gms_comp.tables.reduction import TableConfig
 from gms_comp.validation import input_file, output_file
 from sim.controller import ControllerConfig
+from sim.machine import MachineConfig, load_machine, machine_section
 from sim.plant import PlantConfig
 from sim.scenarios import ScenarioConfig
 
@@ -48,6 +49,7 @@ SECTIONS: dict[str, type[Any]] = {
     "scenario": ScenarioConfig,
     "compensator": CompensatorConfig,
     "can": CanConfig,
+    "machine": MachineConfig,
     "diagnosis": DiagnosisConfig,
     "scaleout": ScaleoutConfig,
 }
@@ -131,9 +133,10 @@ def keys(path: str | Path | None = None) -> list[Key]:
     doc = read_toml(p)
     packaged_doc = doc if p == packaged else read_toml(packaged)
     found = []
+    load_machine(p)  # [machine]'s effect parameters, beyond its own keys
     for section, cls in SECTIONS.items():
-        parsed = parse_section(doc, p, section, cls)
-        packaged_values = parse_section(packaged_doc, packaged, section, cls)
+        parsed = parse_section(machine_section(doc), p, section, cls)
+        packaged_values = parse_section(machine_section(packaged_doc), packaged, section, cls)
         for f in dataclasses.fields(cls):
             required = f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
             found.append(
