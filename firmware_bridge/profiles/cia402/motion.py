@@ -94,12 +94,16 @@ class NcProgram:
         The drive's position unit (0x2010).
     hold_cycles
         Cycles the last target is held before the drive is disabled.
+    repeat
+        Run the targets back and forth until stopped (a machine working through its part
+        program again and again) instead of disabling after the hold.
     """
 
     targets_m: Sequence[float]
     unit_m: float
     hold_cycles: int = 100
     origin_m: float = 0.0
+    repeat: bool = False
     phase: Phase = Phase.ENABLING
     index: int = 0  # the target sent last
     _step: int = 0  # which command of the enable sequence
@@ -156,13 +160,22 @@ class NcProgram:
                 self.index += 1
             else:
                 self._held += 1
-                if self._held >= self.hold_cycles:
+                if self._held >= self.hold_cycles and self.repeat:  # back the other way
+                    self.targets_m, self.index, self._held = self._reversed(), 0, 0
+                elif self._held >= self.hold_cycles:
                     self.phase = Phase.DISABLING
             return ENABLE_SEQUENCE[-1], self.target_at(self.index)
         if self.phase is Phase.DISABLING:
             self.phase = Phase.DONE
             return SHUTDOWN, self.target_at(self.index)
         return None, 0.0
+
+    def _reversed(self) -> list[float]:
+        """The targets run backwards from where the axis stands (origin kept continuous)."""
+        end = self.target_at(len(self.targets_m) - 1)
+        backwards = [float(t) for t in reversed(self.targets_m)]
+        self.origin_m = end
+        return backwards
 
     def stop(self) -> None:
         """End the program early: the next RPDO1 disables the drive (shutdown)."""

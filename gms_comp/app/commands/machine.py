@@ -5,7 +5,8 @@ EDS: SDO, NMT, heartbeat, EMCY, the CiA 402 state machine, PDOs at every SYNC) h
 the simulated axis in cyclic synchronous position: the plant with the full ball model as
 friction plus the ``[machine]`` section's hidden effect, under the drive's own
 position/velocity loop. ``--nc`` adds the NC: SYNC and the CSP target positions along a
-part program (a CSV as ``gms-comp profile`` writes, or the ``[scenario]`` trajectory).
+part program (a CSV as ``gms-comp profile`` writes, or the ``[scenario]`` trajectory), run
+back and forth until the machine stops.
 Without ``--nc`` the drive waits for an NC, or for ``gms-comp record`` / ``commission``,
 which drive it themselves.
 

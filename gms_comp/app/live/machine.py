@@ -88,7 +88,7 @@ def machine_on_bus(
                 nc_bus,
                 codec,
                 cfg.cycle_period_s,
-                NcProgram(list(program), node.unit_m),
+                NcProgram(list(program), node.unit_m, repeat=True),
                 Observed(node.unit_m, cfg.rated_current_A),
             )
             threads.append(threading.Thread(target=nc.run, args=(stop, time.time), daemon=True))
