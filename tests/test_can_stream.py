@@ -193,3 +193,46 @@ def test_output_folder_is_checked_before_streaming(tmp_path: Path) -> None:
     with pytest.raises(SystemExit) as exit_:
         main(["stream", "-o", str(tmp_path / "missing" / "r.json")])
     assert exit_.value.code == 2
+
+
+def test_the_claim_holds_while_the_compensator_sets_up() -> None:
+    """A frame with this compensator's id during its set-up ends it before it streams."""
+    from firmware_bridge.session import Rig
+    from firmware_bridge.streamer import ChannelTakenError
+
+    cfg = replace(CanConfig(), profile="e2e", channel=f"claim-setup-{time.monotonic_ns()}")
+    with Rig(cfg) as rig, can.Bus(interface="virtual", channel=cfg.channel) as other:
+        taken = pytest.raises(ChannelTakenError, match="one compensator per drive")
+        with taken, rig.watching():
+            time.sleep(0.05)  # the observer's tables and compilation
+            other.send(can.Message(arbitration_id=0x120, data=bytes(8), is_extended_id=False))
+            time.sleep(0.05)
+        assert rig.streamer.frames_sent == 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("signame", "code"), [("SIGINT", 130), ("SIGTERM", 143)])
+def test_a_signal_while_streaming_is_a_clean_stop(tmp_path: Path, signame: str, code: int) -> None:
+    """Ctrl-C or SIGTERM once frames flow: ramp to 0 A, session released, NMT, no EMCY."""
+    import signal
+    import subprocess
+    import sys
+
+    out = tmp_path / "report.json"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gms_comp", "stream", "--channel", f"sig-{tmp_path.name}",
+         "--duration", "30", "-o", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    assert proc.stderr is not None
+    for line in proc.stderr:  # wait for frames to flow (progress lines come each second)
+        if line.startswith("stream: 1 s"):
+            break
+    proc.send_signal(getattr(signal, signame))
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == code
+    assert f"stopped by {signame}" in err and "Traceback" not in err
+    report = json.loads(out.read_text())
+    assert report["interrupted"] and report["drive_state"] == "pre_operational"
+    assert report["emcy"] == [] or set(report["emcy"]) <= {"0x8100", "0x8250", "0x8130"}
+    assert report["stale_or_corrupt_applied"] == 0
