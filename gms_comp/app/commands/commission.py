@@ -24,15 +24,14 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from firmware_bridge.settings import load_can_config
 from gms_comp.app.commands.diagnose import extended_table
+from gms_comp.app.live.arguments import add_bus_arguments, bus_config
 from gms_comp.app.live.commission import commission
 from gms_comp.app.live.recording import nc_on_bus
 from gms_comp.app.signals import stop_requests
-from gms_comp.config import default_config_path
 from gms_comp.errors import BusError
 from gms_comp.tables.table import write_table
-from gms_comp.validation import input_file, output_dir, output_file
+from gms_comp.validation import output_dir, output_file
 from sim.scenarios import load_scenario
 
 
@@ -44,9 +43,7 @@ def register(subparsers: Any) -> None:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("config", nargs="?", type=input_file, help="config file (default: Table 1)")
-    p.add_argument("--interface", help="python-can interface (default: [can] interface)")
-    p.add_argument("--channel", help="python-can channel (default: [can] channel)")
+    add_bus_arguments(p)
     p.add_argument(
         "--scale",
         type=float,
@@ -62,11 +59,9 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Commission the axis on the bus; report the cause and the gain."""
-    path = args.config if args.config is not None else default_config_path()
+    path, cfg = bus_config(args)
     s = load_scenario(path)
-    cfg = load_can_config(path)
-    overrides = {k: v for k in ("interface", "channel") if (v := getattr(args, k)) is not None}
-    cfg = replace(cfg, **overrides, profile="cia402", sync_master=True)
+    cfg = replace(cfg, profile="cia402", sync_master=True)
     if nc_on_bus(cfg):
         raise BusError(
             f"an NC produces SYNC on {cfg.interface} {cfg.channel!r}: commission drives the "

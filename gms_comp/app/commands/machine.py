@@ -20,17 +20,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from firmware_bridge.settings import load_can_config
+from gms_comp.app.live.arguments import add_bus_arguments, bus_config, checked_duration
 from gms_comp.app.live.machine import machine_on_bus, read_program, scenario_program
 from gms_comp.app.signals import stop_requests
-from gms_comp.config import default_config_path
-from gms_comp.validation import InputError, input_file
 from sim.machine import load_machine
 
 MAX_DURATION_S = 24 * 3600.0
@@ -45,9 +41,7 @@ def register(subparsers: Any) -> None:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("config", nargs="?", type=input_file, help="config file (default: Table 1)")
-    p.add_argument("--interface", help="python-can interface (default: [can] interface)")
-    p.add_argument("--channel", help="python-can channel (default: [can] channel)")
+    add_bus_arguments(p)
     p.add_argument(
         "--nc",
         nargs="?",
@@ -69,14 +63,11 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Put the machine on the bus until the duration ends or a signal asks it to stop."""
-    path = args.config if args.config is not None else default_config_path()
-    duration = args.duration if args.duration is not None else MAX_DURATION_S
-    if not (math.isfinite(duration) and 0 < duration <= MAX_DURATION_S):
-        raise InputError("--duration", "", f"must be in (0, {MAX_DURATION_S:g}] s")
+    duration = checked_duration(
+        args.duration if args.duration is not None else MAX_DURATION_S, MAX_DURATION_S
+    )
+    path, cfg = bus_config(args)
     machine = load_machine(path)
-    cfg = load_can_config(path)
-    overrides = {k: v for k in ("interface", "channel") if (v := getattr(args, k)) is not None}
-    cfg = replace(cfg, **overrides)
     program = None
     if args.nc == SCENARIO:
         program = scenario_program(machine, cfg.cycle_period_s)

@@ -18,14 +18,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from firmware_bridge.faults import parse_fault
-from firmware_bridge.settings import load_can_config
+from gms_comp.app.live.arguments import add_bus_arguments, bus_config, checked_duration
 from gms_comp.app.live.recording import (
     drive_and_record,
     listen_and_record,
@@ -35,8 +33,7 @@ from gms_comp.app.live.recording import (
     write_recording,
 )
 from gms_comp.app.signals import stop_requests
-from gms_comp.config import default_config_path
-from gms_comp.validation import InputError, input_file, output_file
+from gms_comp.validation import output_file
 from sim.scenarios import load_scenario
 
 MAX_LISTEN_S = 3600.0
@@ -51,9 +48,7 @@ def register(subparsers: Any) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("out", type=output_file, metavar="OUT.csv", help="trace CSV to write")
-    p.add_argument("config", nargs="?", type=input_file, help="config file (default: Table 1)")
-    p.add_argument("--interface", help="python-can interface (default: [can] interface)")
-    p.add_argument("--channel", help="python-can channel (default: [can] channel)")
+    add_bus_arguments(p)
     p.add_argument(
         "--duration",
         type=float,
@@ -77,12 +72,8 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Record, write the trace and its sidecar, say what was lost."""
-    path = args.config if args.config is not None else default_config_path()
-    if not (math.isfinite(args.duration) and 0 < args.duration <= MAX_LISTEN_S):
-        raise InputError("--duration", "", f"must be in (0, {MAX_LISTEN_S:g}] s")
-    cfg = load_can_config(path)
-    overrides = {k: v for k in ("interface", "channel") if (v := getattr(args, k)) is not None}
-    cfg = replace(cfg, **overrides)
+    checked_duration(args.duration, MAX_LISTEN_S)
+    path, cfg = bus_config(args)
     plant = load_scenario(path).plant
     faults = [parse_fault(spec) for spec in args.fault]
     note = print if not args.json else lambda *a, **k: print(*a, **k, file=sys.stderr)

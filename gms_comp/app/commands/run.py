@@ -14,20 +14,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from firmware_bridge.settings import load_can_config
+from gms_comp.app.live.arguments import add_bus_arguments, bus_config, checked_duration
 from gms_comp.app.live.follow import follow
 from gms_comp.app.signals import stop_requests
 from gms_comp.atomic import write_text
-from gms_comp.config import default_config_path
 from gms_comp.runtime.observer import FrictionObserver
 from gms_comp.tables.table import read_table
-from gms_comp.validation import InputError, input_file, output_file
+from gms_comp.validation import input_file, output_file
 from sim.scenarios import load_scenario
 
 MAX_DURATION_S = 24 * 3600.0
@@ -42,7 +39,7 @@ def register(subparsers: Any) -> None:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("config", nargs="?", type=input_file, help="config file (default: Table 1)")
+    add_bus_arguments(p)
     p.add_argument(
         "--table",
         required=True,
@@ -50,8 +47,6 @@ def register(subparsers: Any) -> None:
         help="GMS table (gms-comp table, or diagnose --table); 'none' sends 0 A",
     )
     p.add_argument("--feed", choices=("reference", "measured"), help="override [compensator] feed")
-    p.add_argument("--interface", help="python-can interface (default: [can] interface)")
-    p.add_argument("--channel", help="python-can channel (default: [can] channel)")
     p.add_argument("--duration", type=float, default=MAX_DURATION_S, metavar="S",
                    help="stop after S seconds (default: until Ctrl-C or SIGTERM)")  # fmt: skip
     p.add_argument("--json", action="store_true", help="print the report as JSON on stdout")
@@ -61,13 +56,9 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Follow the bus until the duration ends or a signal stops it; report."""
-    path = args.config if args.config is not None else default_config_path()
-    if not (math.isfinite(args.duration) and 0 < args.duration <= MAX_DURATION_S):
-        raise InputError("--duration", "", f"must be in (0, {MAX_DURATION_S:g}] s")
+    checked_duration(args.duration, MAX_DURATION_S)
+    path, cfg = bus_config(args)
     s = load_scenario(path)
-    cfg = load_can_config(path)
-    overrides = {k: v for k in ("interface", "channel") if (v := getattr(args, k)) is not None}
-    cfg = replace(cfg, **overrides)
     observer = None
     if args.table != NO_TABLE:
         table = read_table(input_file(args.table))
