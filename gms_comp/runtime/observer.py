@@ -31,6 +31,7 @@ import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.config import in_range, non_negative, positive
+from gms_comp.errors import TableError
 from gms_comp.gms import GmsStream
 from gms_comp.runtime.effects import (
     DEFAULT_STANDSTILL_SPEED_M_S,
@@ -106,9 +107,39 @@ def table_model(table: GmsTable, servo_period_s: float) -> ForceModel:
     return GmsStream(table.params)
 
 
+def check_table_fits(
+    table: GmsTable, where: str, force_constant_N_per_A: float, level: float, current_limit_A: float
+) -> None:
+    """Refuse a table whose sliding force needs more than the feedforward's current limit.
+
+    A table holds the whole axis's friction (:mod:`gms_comp.tables.table`); one that does
+    not fit was made for another axis, or is a table of another meaning.
+
+    Raises
+    ------
+    TableError
+        With the force, the current it needs and the limit.
+    """
+    force_N = level * table.params.slip_level * float(np.sum(table.params.limit_N))
+    needed_A = force_N / force_constant_N_per_A
+    if needed_A > current_limit_A:
+        raise TableError(
+            where,
+            "limit_N",
+            f"the table's sliding force {force_N:.4g} N (the whole axis's friction, times "
+            f"level {level:g}) needs {needed_A:.4g} A at {force_constant_N_per_A:g} N/A, more "
+            f"than compensator.current_limit_A = {current_limit_A:g} A",
+        )
+
+
 @dataclass(frozen=True)
 class CompensatorConfig:
-    """The ``[compensator]`` section: how the feedforward is computed and limited."""
+    """The ``[compensator]`` section: how the feedforward is computed and limited.
+
+    ``table_path``: a table of the whole axis's friction, physics or diagnosed, run as it
+    stands (times ``friction_level_scale``); one that needs more than ``current_limit_A``
+    is refused.
+    """
 
     feed: Literal["reference", "measured"] = "reference"
     look_ahead_cycles: int = field(default=1, metadata=in_range(0, 1000))
@@ -195,8 +226,8 @@ class FrictionObserver:
     servo_period_s
         One cycle; sets the per-cycle step of the rate limit and the adaptation.
     level
-        Friction level: multiplies the model force (a table of one ball set on a
-        guide of many, or a deliberately mis-set level).
+        Friction level: multiplies the model force (``friction_level_scale``: a
+        deliberately mis-set level; a table already holds the whole axis's friction).
     config
         Limits and adaptation settings.
 
