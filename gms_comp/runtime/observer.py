@@ -150,6 +150,7 @@ class CompensatorConfig:
     coulomb_velocity_band_m_s: float = field(default=1e-4, metadata=positive())
     adaptation_rate_per_s: float = field(default=0.0, metadata=non_negative())
     adaptation_min_velocity_m_s: float = field(default=2e-3, metadata=positive())
+    adaptation_max_inertial_share: float = field(default=0.3, metadata=positive())
     adaptation_level_bounds: tuple[float, ...] = (0.5, 2.0)
 
     def problems(self) -> list[tuple[str, str]]:
@@ -167,7 +168,8 @@ class CompensatorConfig:
 
 # Layout of the observer's state and parameter vectors (the compiled functions').
 _OUTPUT, _LEVEL, _ENABLED, _FORCE, _INITIAL = range(5)
-_KF, _LIMIT, _MAX_STEP, _GAIN, _MIN_V, _LO, _HI = range(7)
+_KF, _LIMIT, _MAX_STEP, _GAIN, _MIN_V, _LO, _HI, _SHARE = range(8)
+PARAMS = 8
 
 
 @numba.njit(cache=True)
@@ -178,7 +180,7 @@ def feedforward_current(
 
     ``state = [output A, level, enabled, model force N, initial level]``,
     ``params = [k_f, current limit, max step per cycle, adaptation gain per cycle,
-    min velocity, level bounds lo, hi]``.
+    min velocity, level bounds lo, hi, max inertial share]``.
     """
     if not math.isfinite(force_N):
         state[_ENABLED] = 0.0
@@ -200,14 +202,22 @@ def adapt_level(
     inertial_current_A: float,
     velocity_m_s: float,
 ) -> None:  # pragma: no cover
-    """Nudge the level towards the drive's current (see :meth:`FrictionObserver.adapt`)."""
-    if params[_GAIN] == 0.0 or abs(velocity_m_s) < params[_MIN_V]:
+    """Nudge the level towards the drive's current (see :meth:`FrictionObserver.adapt`).
+
+    Frozen where friction cannot be seen: below the minimum speed, where the model does
+    not slide the way the axis moves (presliding after a reversal, a model force at 0),
+    where the mass takes more than the inertial share of the model's friction current
+    (acceleration), and for a ratio outside half to twice the level (an outlier)."""
+    if params[_GAIN] == 0.0 or not abs(velocity_m_s) >= params[_MIN_V]:
         return
     model_force = state[_FORCE]
-    if abs(model_force) < 1e-12:
-        return
     level = state[_LEVEL]
-    ratio = params[_KF] * (drive_current_A - inertial_current_A) / model_force
+    if not model_force * velocity_m_s > 0.0:
+        return
+    model_A = model_force / params[_KF]
+    if not abs(inertial_current_A) <= params[_SHARE] * level * abs(model_A):
+        return
+    ratio = (drive_current_A - inertial_current_A) / model_A
     if not 0.5 * level < ratio < 2.0 * level:
         return  # an outlier (a reversal transient, a collision): no evidence of level
     lo, hi = params[_LO] * state[_INITIAL], params[_HI] * state[_INITIAL]
@@ -263,10 +273,11 @@ class FrictionObserver:
                 force_constant_N_per_A,
                 cfg.current_limit_A,
                 cfg.rate_limit_A_per_s * servo_period_s,
-                cfg.adaptation_rate_per_s * servo_period_s,
+                min(1.0, cfg.adaptation_rate_per_s * servo_period_s),
                 cfg.adaptation_min_velocity_m_s,
                 lo,
                 hi,
+                cfg.adaptation_max_inertial_share,
             ]
         )
         self.state = np.array([0.0, level, 1.0, 0.0, level])
@@ -319,9 +330,12 @@ class FrictionObserver:
         """Nudge the friction level towards what the drive's current says.
 
         ``drive_current_A`` is the motor current, ``inertial_current_A`` the share
-        that accelerates the mass (``m a / k_f`` from the reference). Guards:
-        only above the minimum speed, with a model force clear of zero, ratios
-        within a factor 2 of the level, and the level within its bounds times
-        the initial level.
+        that accelerates the mass (``m a / k_f`` from the reference), ``velocity_m_s``
+        the measured velocity (a stuck axis shows none). Guards (:func:`adapt_level`):
+        only above the minimum speed, with the model sliding the way the axis moves,
+        while the inertial current stays below ``adaptation_max_inertial_share`` of the
+        model's friction current, for ratios within a factor 2 of the level, and the
+        level within its bounds times the initial level. docs/adaptation.md gives the
+        stability bound.
         """
         adapt_level(self.state, self.params, drive_current_A, inertial_current_A, velocity_m_s)
