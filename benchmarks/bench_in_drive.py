@@ -50,10 +50,13 @@ F32 = ctypes.POINTER(ctypes.c_float)
 # Operations of one gms_step, counted from gms_observer.c.in (flops: add, sub, mul, fma
 # counted once; compares: a float compare and its branch or select).
 PER_ELEMENT = {
-    "stick": {"flops": 5, "compares": 3, "loads": 5, "stores": 1},  # y, d*dx, k*y + sum
-    "slip": {"flops": 4, "compares": 3, "loads": 5, "stores": 1},  # y, d*dx, d*W + sum
+    # y = (x - b) + o, k*y + sum (or d*W + sum), d*dx; y > r, y < -r, d*dx < 0, d != 0
+    "stick": {"flops": 5, "compares": 4, "loads": 5, "stores": 1},
+    "slip": {"flops": 4, "compares": 4, "loads": 5, "stores": 1},
 }
-PER_STEP = {"flops": 24, "compares": 12, "loads": 14, "stores": 5, "conversions": 2}
+# |v|, the level lookup, dx, level*slip + stick, viscous, the extension terms, the
+# isfinite checks, level*F/k_f, the limit and the rate limit (no Stribeck, no ripple)
+PER_STEP = {"flops": 15, "compares": 10, "loads": 14, "stores": 5, "conversions": 2}
 PLAY_PER_ELEMENT = {"flops": 4, "compares": 2, "loads": 3, "stores": 1}
 # Cortex-M7 (FPv5, single precision): an add, mul or fused multiply-add issues in one
 # cycle, a compare with its select or branch about two, a load or store from tightly
