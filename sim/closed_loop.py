@@ -18,6 +18,7 @@ import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.runtime.observer import (
+    PARAMS,
     ForceModel,
     FrictionObserver,
     adapt_level,
@@ -69,13 +70,20 @@ def _observer_input(
 
 @numba.njit(cache=True)
 def _feedforward(
-    k: int, force_N: float, obs: Signals, ref: Signals, axis: Signals, inertial_gain: float
+    k: int,
+    force_N: float,
+    obs: Signals,
+    ref: Signals,
+    axis: Signals,
+    inertial_gain: float,
+    ctrl: Signals,
 ) -> float:  # pragma: no cover
-    """The observer's current for ``force_N``, then its level adaptation."""
+    """The observer's current for ``force_N``, then its level adaptation (the drive's
+    current, the reference's inertial current, the measured velocity)."""
     state, params = obs
     wanted = feedforward_current(state, params, force_N)
     x = axis[0]
-    adapt_level(state, params, x[2], inertial_gain * ref[2][k], ref[1][k])
+    adapt_level(state, params, x[2], inertial_gain * ref[2][k], ctrl[1][MEASURED_VELOCITY])
     return wanted
 
 
@@ -131,7 +139,7 @@ def _run_compiled(
         if has_observer:
             x, v = _observer_input(k, ref, look_ahead, feed_measured, measured, ctrl)
             force = model_step(params, state, g, x, v)
-            wanted = _feedforward(k, force, obs, ref, axis, inertial_gain)
+            wanted = _feedforward(k, force, obs, ref, axis, inertial_gain, ctrl)
         ff = delayed_hold(buffer, delay, hold, k, wanted)
         measured = _actuate(k, ff, measured, ref, lead, ctrl, axis, out)
 
@@ -160,7 +168,11 @@ def run(
     out = tuple(np.zeros(n) for _ in range(4))
     ctrl = (controller.gains, controller.state)
     plant = axis.compiled()
-    obs = (observer.state, observer.params) if observer is not None else (np.zeros(5), np.zeros(7))
+    obs = (
+        (observer.state, observer.params)
+        if observer is not None
+        else (np.zeros(5), np.zeros(PARAMS))
+    )
     inertial_gain = axis.cfg.moving_mass_kg / axis.cfg.force_constant_N_per_A
     lead = controller.acceleration_lead_cycles
     feed_measured = feed == "measured"
@@ -181,7 +193,7 @@ def run(
             if observer is not None:
                 x, v = _observer_input(k, ref, look_ahead_cycles, feed_measured, measured, ctrl)
                 force = observer.model.step(x, v)
-                wanted = _feedforward(k, force, obs, ref, plant, inertial_gain)
+                wanted = _feedforward(k, force, obs, ref, plant, inertial_gain, ctrl)
             ff = link.transfer(k, wanted)
             measured = _actuate(k, ff, measured, ref, lead, ctrl, plant, out)
     return RunResult(reference, *out)

@@ -3,8 +3,9 @@
 A truth pack ``(kind, scale, ball, gms)`` holds the transient ball set
 (:mod:`gms_comp.physics.transient`'s streaming kernel), a GMS model, or no friction, in
 one tuple layout (unused parts are empty placeholders), so that one compiled loop
-serves every truth; ``scale`` multiplies the force (identical ball sets in
-parallel). The arrays are the models' own: stepping a pack advances the model
+serves every truth; ``scale[0]`` multiplies the force (identical ball sets in
+parallel; a one-element array, so that a friction level that drifts is that scale
+changed between cycles). The arrays are the models' own: stepping a pack advances the model
 object. (The compensators' models are the strategies' own compiled steps,
 :mod:`sim.strategies`.)
 """
@@ -40,15 +41,15 @@ _NO_BALL = (
 def truth_pack(friction: object, scale: float = 1.0) -> Pack | None:
     """The pack of a friction truth, or None if it has no compiled form."""
     if isinstance(friction, BallSetFriction):
-        return (BALL_SET, scale, friction.streaming_kernel, _NO_GMS)
+        return (BALL_SET, np.array([scale]), friction.streaming_kernel, _NO_GMS)
     if isinstance(friction, GmsStream):
-        return (GMS, scale, _NO_BALL, friction.kernel)
+        return (GMS, np.array([scale]), _NO_BALL, friction.kernel)
     return None
 
 
 def zero_truth() -> Pack:
     """The pack of a frictionless axis."""
-    return (ZERO, 0.0, _NO_BALL, _NO_GMS)
+    return (ZERO, np.zeros(1), _NO_BALL, _NO_GMS)
 
 
 @numba.njit(cache=True)
@@ -56,7 +57,7 @@ def truth_force(truth: Pack, position_m: float, velocity_m_s: float) -> float:  
     """Resisting force of a truth pack (``F v >= 0`` in steady sliding)."""
     kind, scale, ball, g = truth
     if kind == BALL_SET:
-        return scale * transient.step_streaming(ball, position_m, velocity_m_s)
+        return scale[0] * transient.step_streaming(ball, position_m, velocity_m_s)
     if kind == GMS:
-        return scale * gms_kernel.stream_step(g, position_m, velocity_m_s)
+        return scale[0] * gms_kernel.stream_step(g, position_m, velocity_m_s)
     return 0.0

@@ -27,7 +27,12 @@ from gms_comp.config import default_config_path, in_range, parse_section, positi
 from gms_comp.errors import ScenarioError
 from gms_comp.physics.config import BallConfig, load_ball_config
 from gms_comp.physics.transient import BallSetFriction
-from gms_comp.runtime.observer import CompensatorConfig, ForceModel, FrictionObserver
+from gms_comp.runtime.observer import (
+    CompensatorConfig,
+    ForceModel,
+    FrictionObserver,
+    check_table_fits,
+)
 from gms_comp.tables.reduction import reduce_to_gms
 from gms_comp.tables.table import GmsTable, read_table
 from sim.closed_loop import RunResult, run
@@ -96,6 +101,13 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
     )
 
 
+def load_plant(path: str | Path | None = None) -> PlantConfig:
+    """The ``[plant]`` section of ``path`` (default: Table 1): the axis a table is made for
+    (its ``ball_set_count`` scales the one ball set of the physics to the whole axis)."""
+    p = Path(path) if path is not None else default_config_path()
+    return parse_section(read_toml(p), p, "plant", PlantConfig)
+
+
 def build_reference(s: Scenario) -> Reference:
     """The scenario's trajectory at the servo rate; refuse one the axis cannot follow.
 
@@ -135,10 +147,19 @@ def ball_set_friction(ball: BallConfig) -> ForceModel:
 
 
 def reduced_table(s: Scenario) -> GmsTable:
-    """The GMS table: the configured file, else reduced from the ball model ([table])."""
-    if s.compensator.table_path:
-        return read_table(Path(s.path).parent / s.compensator.table_path)
-    return reduce_to_gms(s.ball)
+    """The GMS table of the whole axis: the configured file (refused if its force needs
+    more than the feedforward's current limit), else reduced from the ball model
+    ([table]) for the plant's ``ball_set_count`` ball sets."""
+    comp = s.compensator
+    if not comp.table_path:
+        return reduce_to_gms(s.ball, ball_sets=s.plant.ball_set_count)
+    path = Path(s.path).parent / comp.table_path
+    table = read_table(path)
+    check_table_fits(
+        table, str(path), s.plant.force_constant_N_per_A, comp.friction_level_scale,
+        comp.current_limit_A,
+    )  # fmt: skip
+    return table
 
 
 @dataclass(frozen=True)
@@ -156,16 +177,17 @@ def build_observer(s: Scenario, name: str, physics: Physics) -> FrictionObserver
     def calibration() -> Calibration:
         c = s.scenario
         v1, v2 = c.calibration_velocities_m_s
-        return calibrate(physics.truth(s.ball), c.calibration_travel_m, (v1, v2))
+        truth = ScaledFriction(physics.truth(s.ball), s.plant.ball_set_count)
+        return calibrate(truth, c.calibration_travel_m, (v1, v2))
 
     inputs = StrategyInputs(calibration, lambda: physics.table(s), comp.coulomb_velocity_band_m_s)
     source: GmsTable | ForceModel | None = REGISTRY[name].source(inputs)
     if source is None:
         return None
-    level = s.plant.ball_set_count * comp.friction_level_scale
     return FrictionObserver(
-        source, s.plant.force_constant_N_per_A, s.controller.servo_period_s, level, comp
-    )
+        source, s.plant.force_constant_N_per_A, s.controller.servo_period_s,
+        comp.friction_level_scale, comp,
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from gms_comp.app.commands.diagnose_closed_loop import _effect_force
-from gms_comp.gms import GmsParams, GmsStream
+from gms_comp.gms import GmsParams, GmsStream, scaled
 from gms_comp.runtime import effects as fx
 from gms_comp.tables.table import Fidelity, GmsTable
 from sim.link import DirectLink
@@ -41,7 +41,12 @@ def _table(params: GmsParams) -> GmsTable:
 
 
 def _physics(table: GmsParams = STAND_IN) -> Physics:
-    return Physics(truth=lambda ball: GmsStream(STAND_IN), table=lambda s: _table(table))
+    """The stand-in as the truth of one ball set; the table, of the whole axis, is
+    ``table`` times the plant's ball sets."""
+    return Physics(
+        truth=lambda ball: GmsStream(STAND_IN),
+        table=lambda s: _table(scaled(table, s.plant.ball_set_count, 1.0)),
+    )
 
 
 def _scenario(**scenario: Any) -> Scenario:
@@ -145,7 +150,7 @@ def test_adaptation_recovers_a_misset_friction_level() -> None:
     observer = build_observer(s, "gms", physics)
     assert observer is not None
     Loop.build(s, physics).run(observer, DirectLink(1))
-    right = s.plant.ball_set_count  # the table is the truth here: level 1 per ball set
+    right = 1.0  # the table is the truth here (the whole axis's)
     assert abs(observer.level - right) < 0.5 * abs(observer.initial_level - right)
 
 

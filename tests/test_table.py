@@ -16,11 +16,14 @@ from hypothesis import strategies as st
 from gms_comp import __version__
 from gms_comp.errors import GmsCompError, TableError
 from gms_comp.gms import GmsParams
+from gms_comp.physics.config import load_ball_config
+from gms_comp.physics.transient import BallSetFriction
 from gms_comp.tables.table import (
     Extension,
     Fidelity,
     GmsTable,
     LoadFamily,
+    Scaling,
     read_table,
     table_to_dict,
     write_table,
@@ -48,6 +51,7 @@ def make_table(
         fidelity=Fidelity(rms_rel=0.01, max_rel=0.05),
         load_family=family if with_family else None,
         extensions=(Extension("stribeck", {"velocity_m_s": 1e-3, "ratio": 1.1}),),
+        scaled_by=Scaling(40.0, (50.0, 48.5)) if with_family else None,
     )
 
 
@@ -76,6 +80,7 @@ def test_round_trip_is_exact(
     assert back.version == __version__
     assert back.params.attraction_rate_per_s == rate
     assert back.extensions == table.extensions
+    assert back.scaled_by == table.scaled_by
 
 
 def test_load_family_interpolates_linearly_and_clamps() -> None:
@@ -111,7 +116,11 @@ def set_in(doc: dict[str, Any], dotted: str, value: Any) -> None:
 @pytest.mark.parametrize(
     ("dotted", "value", "field"),
     [
-        ("format_version", 4, "format_version"),
+        ("format_version", 5, "format_version"),
+        ("format_version", 3, "format_version"),
+        ("scaled_by.ball_sets", -1.0, "scaled_by.ball_sets"),
+        ("scaled_by.ball_loads_N", [], "scaled_by.ball_loads_N"),
+        ("scaled_by", {"ball_sets": 40.0}, "scaled_by.ball_loads_N"),
         ("gms_comp_version", "7.0.0", "gms_comp_version"),
         ("format", "something-else", "format"),
         ("elements", 3, "stiffness_N_per_m"),
@@ -169,16 +178,16 @@ def test_the_level_s_tail_round_trips_and_absent_is_exponential(
     write_table(path, table)
     doc = json.loads(path.read_text())
     assert doc["velocity_level"]["transition_tail"] == (None if math.isinf(tail) else tail)
-    # a reader that does not know the tail must refuse a finite one, not run it exponential
-    assert doc["format_version"] == (1 if math.isinf(tail) else 2)
+    # version 4: every reader of it knows the tail (a version-1 reader refuses the table)
+    assert doc["format_version"] == 4
     assert read_table(path).params.transition_tail == tail
     del doc["velocity_level"]["transition_tail"]
     assert read_table(write_doc(tmp_path, doc)).params.transition_tail == math.inf
 
 
-def test_a_limit_that_follows_the_level_round_trips_as_version_3(tmp_path: Path) -> None:
-    """The law is written and read back; a table with it is version 3 (a reader of 1 and
-    2 refuses it rather than run the seed's law); without the key it is the seed's law;
+def test_a_limit_that_follows_the_level_round_trips(tmp_path: Path) -> None:
+    """The law is written and read back (version 4, which a reader of 1 to 3 refuses
+    rather than run the seed's law); without the key it is the seed's law;
     a table with it and a finite attraction rate is refused (the law has no attraction)."""
     table = make_table([1e6, 2e5], [0.1, 0.2])
     law = dataclasses.replace(table.params, slip_level=1.2, limit_follows_level=True)
@@ -186,14 +195,11 @@ def test_a_limit_that_follows_the_level_round_trips_as_version_3(tmp_path: Path)
     write_table(path, dataclasses.replace(table, params=law))
     doc = json.loads(path.read_text())
     assert doc["velocity_level"]["limit_follows_level"] is True
-    assert doc["format_version"] == 3
+    assert doc["format_version"] == 4
     assert read_table(path).params.limit_follows_level is True
     tailed = dataclasses.replace(law, transition_tail=1.0)
     write_table(path, dataclasses.replace(table, params=tailed))
-    assert json.loads(path.read_text())["format_version"] == 3
     assert read_table(path).params.transition_tail == 1.0
-    write_table(path, table)
-    assert json.loads(path.read_text())["format_version"] == 1
     del doc["velocity_level"]["limit_follows_level"]
     assert read_table(write_doc(tmp_path, doc)).params.limit_follows_level is False
     doc["velocity_level"]["limit_follows_level"] = True
@@ -236,6 +242,12 @@ def test_table_command_writes_a_readable_table(
     summary = json.loads(capsys.readouterr().out)
     table = read_table(out)
     assert summary["elements"] == table.n_elements == 8
+    # the whole axis: [plant] ball_set_count (40) copies of the stand's ball set
+    assert table.scaled_by == Scaling(40.0, (50.0, 50.0, 50.0, 50.0))
+    one_set = BallSetFriction(load_ball_config())  # its steady sliding force, independently
+    one_set.reset()
+    sliding_N = [one_set.step(x, 0.01) for x in np.linspace(0.0, 1e-3, 400)][-1]
+    assert summary["sliding_force_N"] == pytest.approx(40 * sliding_N, rel=0.03)
     assert summary["fidelity"]["rms_rel"] == table.fidelity.rms_rel <= 0.02
     assert summary["fidelity"]["max_rel"] >= summary["fidelity"]["rms_rel"]
     assert main(["table", str(tmp_path / "absent.toml"), "-o", str(out)]) == 2

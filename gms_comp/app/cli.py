@@ -46,6 +46,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     "replay",
     "table",
     "bench",
+    "export_c",
 )
 
 INTERRUPTED = 130  # the shell's code for a process ended by SIGINT

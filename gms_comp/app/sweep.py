@@ -163,12 +163,13 @@ class PointJob:
 
 def build_point(job: PointJob) -> dict[str, Any]:
     """Validate one point's config and write its table; returns its fidelity figures."""
-    from gms_comp.tables.reduction import (
-        reduce_to_gms,  # the ball model loads only where tables are made
-    )
+    # the ball model loads only where tables are made
+    from gms_comp.tables.reduction import reduce_to_gms
+    from sim.scenarios import load_plant
 
     cfg = load_ball_config(job.config_path)
-    table = reduce_to_gms(cfg, job.elements)
+    ball_sets = load_plant(job.config_path).ball_set_count
+    table = reduce_to_gms(cfg, job.elements, ball_sets=ball_sets)
     write_table(job.table_path, table)
     return _fidelity_row(table)
 

@@ -31,6 +31,7 @@ import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.config import in_range, non_negative, positive
+from gms_comp.errors import TableError
 from gms_comp.gms import GmsStream
 from gms_comp.runtime.effects import (
     DEFAULT_STANDSTILL_SPEED_M_S,
@@ -106,9 +107,39 @@ def table_model(table: GmsTable, servo_period_s: float) -> ForceModel:
     return GmsStream(table.params)
 
 
+def check_table_fits(
+    table: GmsTable, where: str, force_constant_N_per_A: float, level: float, current_limit_A: float
+) -> None:
+    """Refuse a table whose sliding force needs more than the feedforward's current limit.
+
+    A table holds the whole axis's friction (:mod:`gms_comp.tables.table`); one that does
+    not fit was made for another axis, or is a table of another meaning.
+
+    Raises
+    ------
+    TableError
+        With the force, the current it needs and the limit.
+    """
+    force_N = level * table.params.slip_level * float(np.sum(table.params.limit_N))
+    needed_A = force_N / force_constant_N_per_A
+    if needed_A > current_limit_A:
+        raise TableError(
+            where,
+            "limit_N",
+            f"the table's sliding force {force_N:.4g} N (the whole axis's friction, times "
+            f"level {level:g}) needs {needed_A:.4g} A at {force_constant_N_per_A:g} N/A, more "
+            f"than compensator.current_limit_A = {current_limit_A:g} A",
+        )
+
+
 @dataclass(frozen=True)
 class CompensatorConfig:
-    """The ``[compensator]`` section: how the feedforward is computed and limited."""
+    """The ``[compensator]`` section: how the feedforward is computed and limited.
+
+    ``table_path``: a table of the whole axis's friction, physics or diagnosed, run as it
+    stands (times ``friction_level_scale``); one that needs more than ``current_limit_A``
+    is refused.
+    """
 
     feed: Literal["reference", "measured"] = "reference"
     look_ahead_cycles: int = field(default=1, metadata=in_range(0, 1000))
@@ -119,6 +150,7 @@ class CompensatorConfig:
     coulomb_velocity_band_m_s: float = field(default=1e-4, metadata=positive())
     adaptation_rate_per_s: float = field(default=0.0, metadata=non_negative())
     adaptation_min_velocity_m_s: float = field(default=2e-3, metadata=positive())
+    adaptation_max_inertial_share: float = field(default=0.3, metadata=positive())
     adaptation_level_bounds: tuple[float, ...] = (0.5, 2.0)
 
     def problems(self) -> list[tuple[str, str]]:
@@ -136,7 +168,8 @@ class CompensatorConfig:
 
 # Layout of the observer's state and parameter vectors (the compiled functions').
 _OUTPUT, _LEVEL, _ENABLED, _FORCE, _INITIAL = range(5)
-_KF, _LIMIT, _MAX_STEP, _GAIN, _MIN_V, _LO, _HI = range(7)
+_KF, _LIMIT, _MAX_STEP, _GAIN, _MIN_V, _LO, _HI, _SHARE = range(8)
+PARAMS = 8
 
 
 @numba.njit(cache=True)
@@ -147,7 +180,7 @@ def feedforward_current(
 
     ``state = [output A, level, enabled, model force N, initial level]``,
     ``params = [k_f, current limit, max step per cycle, adaptation gain per cycle,
-    min velocity, level bounds lo, hi]``.
+    min velocity, level bounds lo, hi, max inertial share]``.
     """
     if not math.isfinite(force_N):
         state[_ENABLED] = 0.0
@@ -169,14 +202,22 @@ def adapt_level(
     inertial_current_A: float,
     velocity_m_s: float,
 ) -> None:  # pragma: no cover
-    """Nudge the level towards the drive's current (see :meth:`FrictionObserver.adapt`)."""
-    if params[_GAIN] == 0.0 or abs(velocity_m_s) < params[_MIN_V]:
+    """Nudge the level towards the drive's current (see :meth:`FrictionObserver.adapt`).
+
+    Frozen where friction cannot be seen: below the minimum speed, where the model does
+    not slide the way the axis moves (presliding after a reversal, a model force at 0),
+    where the mass takes more than the inertial share of the model's friction current
+    (acceleration), and for a ratio outside half to twice the level (an outlier)."""
+    if params[_GAIN] == 0.0 or not abs(velocity_m_s) >= params[_MIN_V]:
         return
     model_force = state[_FORCE]
-    if abs(model_force) < 1e-12:
-        return
     level = state[_LEVEL]
-    ratio = params[_KF] * (drive_current_A - inertial_current_A) / model_force
+    if not model_force * velocity_m_s > 0.0:
+        return
+    model_A = model_force / params[_KF]
+    if not abs(inertial_current_A) <= params[_SHARE] * level * abs(model_A):
+        return
+    ratio = (drive_current_A - inertial_current_A) / model_A
     if not 0.5 * level < ratio < 2.0 * level:
         return  # an outlier (a reversal transient, a collision): no evidence of level
     lo, hi = params[_LO] * state[_INITIAL], params[_HI] * state[_INITIAL]
@@ -195,8 +236,8 @@ class FrictionObserver:
     servo_period_s
         One cycle; sets the per-cycle step of the rate limit and the adaptation.
     level
-        Friction level: multiplies the model force (a table of one ball set on a
-        guide of many, or a deliberately mis-set level).
+        Friction level: multiplies the model force (``friction_level_scale``: a
+        deliberately mis-set level; a table already holds the whole axis's friction).
     config
         Limits and adaptation settings.
 
@@ -232,10 +273,11 @@ class FrictionObserver:
                 force_constant_N_per_A,
                 cfg.current_limit_A,
                 cfg.rate_limit_A_per_s * servo_period_s,
-                cfg.adaptation_rate_per_s * servo_period_s,
+                min(1.0, cfg.adaptation_rate_per_s * servo_period_s),
                 cfg.adaptation_min_velocity_m_s,
                 lo,
                 hi,
+                cfg.adaptation_max_inertial_share,
             ]
         )
         self.state = np.array([0.0, level, 1.0, 0.0, level])
@@ -288,9 +330,12 @@ class FrictionObserver:
         """Nudge the friction level towards what the drive's current says.
 
         ``drive_current_A`` is the motor current, ``inertial_current_A`` the share
-        that accelerates the mass (``m a / k_f`` from the reference). Guards:
-        only above the minimum speed, with a model force clear of zero, ratios
-        within a factor 2 of the level, and the level within its bounds times
-        the initial level.
+        that accelerates the mass (``m a / k_f`` from the reference), ``velocity_m_s``
+        the measured velocity (a stuck axis shows none). Guards (:func:`adapt_level`):
+        only above the minimum speed, with the model sliding the way the axis moves,
+        while the inertial current stays below ``adaptation_max_inertial_share`` of the
+        model's friction current, for ratios within a factor 2 of the level, and the
+        level within its bounds times the initial level. docs/adaptation.md gives the
+        stability bound.
         """
         adapt_level(self.state, self.params, drive_current_A, inertial_current_A, velocity_m_s)

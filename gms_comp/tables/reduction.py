@@ -45,12 +45,12 @@ from tqdm import tqdm
 from gms_comp.arrays import FloatArray
 from gms_comp.config import config_hash, in_range, parse_section, read_toml
 from gms_comp.errors import ConfigError, InputError
-from gms_comp.gms import GmsParams, simulate, simulate_elements
+from gms_comp.gms import GmsParams, scaled, simulate, simulate_elements
 from gms_comp.physics.config import BallConfig
 from gms_comp.physics.contact import contact_problem, hertz_contact
 from gms_comp.physics.profiles import seed_fig7_profile
 from gms_comp.physics.transient import BallSetFriction
-from gms_comp.tables.table import Fidelity, GmsTable, LoadFamily
+from gms_comp.tables.table import Fidelity, GmsTable, LoadFamily, Scaling
 from gms_comp.validation import MAX_FAMILY_LOADS, MAX_TABLE_ELEMENTS
 
 Path_ = tuple[FloatArray, FloatArray]
@@ -340,9 +340,11 @@ def reduce_to_gms(
     n_elements: int | None = None,
     table_cfg: TableConfig | None = None,
     *,
+    ball_sets: float = 1.0,
     progress: bool = False,
 ) -> GmsTable:
-    """Reduce the configured ball set to a GMS table of exactly N elements.
+    """Reduce the configured ball set to a GMS table of exactly N elements, for
+    ``ball_sets`` such sets moving together (the whole axis's friction).
 
     Parameters
     ----------
@@ -355,6 +357,10 @@ def reduce_to_gms(
         With ``family_loads_N`` the table also holds a load family: the same N
         elements refitted with every ball at each of those loads (at the main
         fit's slip level, so only k_i and W_i vary along the family).
+    ball_sets
+        Identical ball sets in parallel see the same displacement: the fitted k_i, W_i
+        (and the family's rows) are multiplied by this count, which the table records
+        in ``scaled_by`` with the set's ball loads. Its fidelity is relative, unchanged.
     progress
         Show a progress bar on stderr.
     """
@@ -400,16 +406,17 @@ def reduce_to_gms(
     family = (
         LoadFamily(
             np.array(loads),
-            np.array([p.stiffness_N_per_m for p in rows]),
-            np.array([p.limit_N for p in rows]),
+            np.array([p.stiffness_N_per_m for p in rows]) * ball_sets,
+            np.array([p.limit_N for p in rows]) * ball_sets,
         )
         if loads
         else None
     )
     return GmsTable(
-        params=params,
+        params=scaled(params, ball_sets, 1.0, viscous_Ns_per_m=params.viscous_Ns_per_m * ball_sets),
         source_config=str(cfg.path),
         source_sha256=config_hash(cfg.path),
         fidelity=quality,
         load_family=family,
+        scaled_by=Scaling(float(ball_sets), tuple(cfg.stand.ball_loads_N)),
     )

@@ -3,7 +3,7 @@
 A table is JSON (read with :func:`json.loads`, never pickle), SI units, keys
 carrying their units::
 
-    {"format": "gms-comp-table", "format_version": 1, "gms_comp_version": "0.1.0",
+    {"format": "gms-comp-table", "format_version": 4, "gms_comp_version": "0.1.0",
      "units": {...}, "elements": N, "stiffness_N_per_m": [...], "limit_N": [...],
      "velocity_level": {"slip_level": 1.2, "transition_velocity_m_s": 1e-4,
                         "transition_exponent": 2.0, "transition_tail": null,
@@ -16,7 +16,14 @@ carrying their units::
                             "limit_N": [[...]]},
      "extensions": [{"effect": "viscous", "parameters": {"name": 1.0}}],
      "extension_context": null | {"standstill_speed_m_s": ..., "reversal_deadband_m": ...,
-                                  "rest_band_m": ...}}
+                                  "rest_band_m": ...},
+     "scaled_by": null | {"ball_sets": 40.0, "ball_loads_N": [50.0, ...]}}
+
+A table's forces are the whole axis's friction, whichever command made it; the observer
+runs it as it stands (times ``[compensator] friction_level_scale`` only). ``scaled_by``: the
+ball sets a physics table's one set was scaled by, and that set's ball loads; null for a
+diagnosed table (measured on the whole axis). Versions 1 to 3 held one ball set in a
+physics table and are refused.
 
 ``extension_context`` is how the extensions were fitted to see the path (when the
 axis is at rest, what counts as a reversal; ``gms_comp.runtime.effects.path``): the
@@ -56,12 +63,8 @@ from gms_comp.validation import (
 )
 
 FORMAT = "gms-comp-table"
-FORMAT_VERSION = 1
-# A finite velocity-level tail is written as version 2, so that a reader that does not
-# know the tail refuses the table rather than run it with the exponential approach.
-TAIL_FORMAT_VERSION = 2
-# ... and a limit that follows the level as version 3, for the same reason.
-LAW_FORMAT_VERSION = 3
+# 4: whole-axis forces (2 and 3 marked a velocity-level tail and the level's limit law).
+FORMAT_VERSION = 4
 UNITS = {
     "position": "m",
     "velocity": "m/s",
@@ -136,6 +139,14 @@ class LoadFamily:
         return interp(self.stiffness_N_per_m), interp(self.limit_N)
 
 
+@dataclass(frozen=True)
+class Scaling:
+    """What a physics table's single ball set was scaled by to make the whole axis."""
+
+    ball_sets: float
+    ball_loads_N: tuple[float, ...]
+
+
 @dataclass(frozen=True, eq=False)
 class GmsTable:
     """A GMS model with its provenance, fidelity and optional extras."""
@@ -148,6 +159,7 @@ class GmsTable:
     load_family: LoadFamily | None = None
     extensions: tuple[Extension, ...] = field(default_factory=tuple)
     extension_context: Mapping[str, float] | None = None  # keys: EXTENSION_CONTEXT_KEYS
+    scaled_by: Scaling | None = None  # None: measured on the whole axis
 
     @property
     def n_elements(self) -> int:
@@ -165,9 +177,7 @@ def table_to_dict(table: GmsTable) -> dict[str, Any]:
     tail = None if p.transition_tail >= MAX_TRANSITION_TAIL else p.transition_tail
     return {
         "format": FORMAT,
-        "format_version": LAW_FORMAT_VERSION
-        if p.limit_follows_level
-        else (FORMAT_VERSION if tail is None else TAIL_FORMAT_VERSION),
+        "format_version": FORMAT_VERSION,
         "gms_comp_version": table.version,
         "units": dict(UNITS),
         "elements": p.n_elements,
@@ -199,6 +209,12 @@ def table_to_dict(table: GmsTable) -> dict[str, Any]:
         "extension_context": None
         if table.extension_context is None
         else dict(table.extension_context),
+        "scaled_by": None
+        if table.scaled_by is None
+        else {
+            "ball_sets": table.scaled_by.ball_sets,
+            "ball_loads_N": list(table.scaled_by.ball_loads_N),
+        },
     }
 
 
@@ -227,8 +243,14 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
     if doc.get("format") != FORMAT:
         raise r.error("format", f"must be {FORMAT!r}, got {doc.get('format')!r}")
     fv = r.get(doc, "format_version")
-    if fv not in (FORMAT_VERSION, TAIL_FORMAT_VERSION, LAW_FORMAT_VERSION) or isinstance(fv, bool):
-        raise r.error("format_version", f"unknown version {fv!r} (this reader knows 1 to 3)")
+    if fv in (1, 2, 3) and not isinstance(fv, bool):
+        raise r.error(
+            "format_version",
+            f"version {fv} predates whole-axis tables (a physics table held one ball set): "
+            "remake it (gms-comp table, or gms-comp diagnose --table)",
+        )
+    if fv != FORMAT_VERSION or isinstance(fv, bool):
+        raise r.error("format_version", f"unknown version {fv!r} (this reader knows 4)")
     version = r.version(doc, "gms_comp_version")
     units = r.get(doc, "units")
     if units != UNITS:
@@ -281,6 +303,7 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
         load_family=r.load_family(doc, n),
         extensions=r.extensions(doc),
         extension_context=r.extension_context(doc),
+        scaled_by=r.scaling(doc),
     )
 
 
@@ -372,6 +395,13 @@ class _Reader:
                 )
             )
         return LoadFamily(loads, rows[0], rows[1])
+
+    def scaling(self, doc: Any) -> Scaling | None:
+        found, key = self.get(doc, "scaled_by"), "scaled_by.ball_loads_N"
+        if found is None:
+            return None
+        loads = self.vector(self.get(found, key), key, None, True, MAX_FORCE_N).tolist()
+        return Scaling(self.number(found, "scaled_by.ball_sets", False, MAX_FORCE_N), tuple(loads))
 
     def extension_context(self, doc: Any) -> dict[str, float] | None:
         context = doc.get("extension_context")

@@ -61,7 +61,7 @@ class CompiledModel:
 
 @dataclass(frozen=True)
 class Calibration:
-    """What the baselines learn from the truth (one friction source, unscaled)."""
+    """What the baselines learn from the truth (the whole axis's friction)."""
 
     coulomb_N: float
     viscous_Ns_per_m: float

@@ -22,7 +22,7 @@ from gms_comp.app.live.arguments import add_bus_arguments, bus_config, checked_d
 from gms_comp.app.live.follow import follow
 from gms_comp.app.signals import stop_requests
 from gms_comp.atomic import write_text
-from gms_comp.runtime.observer import FrictionObserver
+from gms_comp.runtime.observer import FrictionObserver, check_table_fits
 from gms_comp.tables.table import read_table
 from gms_comp.validation import input_file, output_file
 from sim.scenarios import load_scenario
@@ -63,6 +63,8 @@ def run(args: argparse.Namespace) -> int:
     if args.table != NO_TABLE:
         table = read_table(input_file(args.table))
         comp = s.compensator
+        check_table_fits(table, args.table, s.plant.force_constant_N_per_A,
+                         comp.friction_level_scale, comp.current_limit_A)  # fmt: skip
         observer = FrictionObserver(
             table, s.plant.force_constant_N_per_A, cfg.cycle_period_s,
             comp.friction_level_scale, comp,

@@ -38,11 +38,13 @@ from gms_comp.validation import input_file, output_file
 from sim.closed_loop import RunResult
 from sim.link import DirectLink, FeedforwardLink
 from sim.scenarios import (
+    Physics,
     Scenario,
     axis_scenarios,
     circularity,
     load_scenario,
     radial_error,
+    reduced_table,
     run_strategies,
     score,
 )
@@ -118,6 +120,8 @@ def _links(
 def run(args: argparse.Namespace) -> int:
     """Run every strategy on every axis of the scenario; report and write."""
     s = load_scenario(args.config)
+    table = reduced_table(s)  # made or read once, and a table that does not fit refused now
+    physics = Physics(table=lambda _s: table)
     axes = axis_scenarios(s)
     started = time.perf_counter()
 
@@ -132,6 +136,7 @@ def run(args: argparse.Namespace) -> int:
         runs = [
             run_strategies(
                 axis,
+                physics=physics,
                 link=link,
                 progress=progress(f"{axis.scenario.circle_axis} axis, " * (len(axes) > 1)),
             )

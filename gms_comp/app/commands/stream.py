@@ -218,7 +218,7 @@ def gms_observer_source(config_path: Path, cfg: CanConfig, duration_s: float) ->
         reduced_table(s),
         s.plant.force_constant_N_per_A,
         cfg.cycle_period_s,
-        s.plant.ball_set_count * s.compensator.friction_level_scale,
+        s.compensator.friction_level_scale,
         s.compensator,
     )
     ref = sine(

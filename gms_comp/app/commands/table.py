@@ -14,6 +14,7 @@ from gms_comp.physics.config import load_ball_config
 from gms_comp.tables.reduction import load_table_config, reduce_to_gms
 from gms_comp.tables.table import write_table
 from gms_comp.validation import output_file
+from sim.scenarios import load_plant
 
 # The [table] elements range of the config (gms_comp.tables.reduction.TableConfig).
 MAX_ELEMENTS = 1024
@@ -46,9 +47,9 @@ def register(subparsers: Any) -> None:
         help="reduce the ball model to a GMS table",
         description=(
             "Fit N Maxwell-slip elements to the configured ball set's transient friction "
-            "(bounded least squares on its virgin curve and a training path) and write the "
-            "table as JSON, with its fidelity "
-            "over the seed's Fig. 7 profile and a random multi-amplitude path."
+            "(bounded least squares on its virgin curve and a training path), scale them to "
+            "the whole axis ([plant] ball_set_count ball sets) and write the table as JSON, "
+            "with its fidelity over the seed's Fig. 7 profile and a random multi-amplitude path."
         ),
     )
     parser.add_argument(
@@ -80,7 +81,10 @@ def run(args: argparse.Namespace) -> int:
     table_cfg = load_table_config(cfg.path)
     if args.family_loads is not None:
         table_cfg = dataclasses.replace(table_cfg, family_loads_N=args.family_loads)
-    table = reduce_to_gms(cfg, args.elements, table_cfg, progress=sys.stderr.isatty())
+    ball_sets = load_plant(args.config).ball_set_count
+    table = reduce_to_gms(
+        cfg, args.elements, table_cfg, ball_sets=ball_sets, progress=sys.stderr.isatty()
+    )
     write_table(args.output, table)
     family = table.load_family
     summary = {
@@ -89,6 +93,8 @@ def run(args: argparse.Namespace) -> int:
         "config_sha256": table.source_sha256,
         "elements": table.n_elements,
         "slip_level": table.params.slip_level,
+        "ball_sets": ball_sets,
+        "sliding_force_N": table.params.slip_level * float(table.params.limit_N.sum()),
         "fidelity": {"rms_rel": table.fidelity.rms_rel, "max_rel": table.fidelity.max_rel},
         "family_loads_N": [] if family is None else family.normal_load_N.tolist(),
         "seconds": time.perf_counter() - start,
@@ -98,7 +104,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"wrote {args.output}", file=sys.stderr)
     else:
         print(
-            f"wrote {args.output}: {table.n_elements} elements, "
+            f"wrote {args.output}: {table.n_elements} elements, {ball_sets:g} ball sets "
+            f"(sliding force {summary['sliding_force_N']:.4g} N), "
             f"rms {100 * table.fidelity.rms_rel:.2f} %, max {100 * table.fidelity.max_rel:.2f} % "
             f"of the sliding force ({summary['seconds']:.1f} s)"
         )

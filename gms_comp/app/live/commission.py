@@ -34,7 +34,6 @@ from gms_comp.app.live.recording import (
     to_trace,
 )
 from gms_comp.arrays import FloatArray
-from gms_comp.gms import scaled
 from gms_comp.measured.diagnosis.run import Diagnosis, DiagnosisConfig, diagnose
 from gms_comp.measured.traces import Trace
 from gms_comp.runtime.observer import ForceModel, FrictionObserver
@@ -74,12 +73,7 @@ def fit_coulomb_viscous(trace: Trace, band_m_s: float) -> CoulombViscous:
 
 def physics_table(s: Scenario) -> GmsTable:
     """The ball model reduced to a GMS, its force that of the whole guide (ball sets)."""
-    table = reduce_to_gms(s.ball)
-    return _whole_axis(table, s.plant.ball_set_count)
-
-
-def _whole_axis(table: GmsTable, count: float) -> GmsTable:
-    return replace(table, params=scaled(table.params, count, 1.0))
+    return reduce_to_gms(s.ball, ball_sets=s.plant.ball_set_count)
 
 
 def reversal_targets(s: Scenario, period_s: float) -> FloatArray:
@@ -209,7 +203,7 @@ def commission(
     # simulated machine the calibration moved the level 5 % and presliding 15 % from the
     # truth, and the reversals came out 70 % worse than the physics table's)
     result = diagnose(trace, "drive", None, DiagnosisConfig(), physics.params)
-    extended = replace(extended_table(result), params=physics.params)
+    extended = replace(extended_table(result), params=physics.params, scaled_by=physics.scaled_by)
     cv = fit_coulomb_viscous(trace, s.compensator.coulomb_velocity_band_m_s)
     models: dict[str, GmsTable | ForceModel | None] = {
         "none": None,
