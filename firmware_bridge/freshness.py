@@ -54,6 +54,9 @@ STAMP_MODULUS = 1 << 16
 """Stamps and drive cycles count modulo this (16 bits on the wire)."""
 SESSION_IDS = range(1, 256)
 """Session ids a compensator may draw; 0 means "no session"."""
+PER_MILLE = 1000
+MAX_IN_DRIVE_LEVEL_RAW = 4000
+"""An in-drive observer's level (per mille) at most four times its table's friction."""
 SESSION_TIMEOUT_FACTOR = 10
 """A session ends after this many link timeouts without a fresh frame of it."""
 AGE_TOLERANCE_CYCLES = 1e-6
@@ -66,6 +69,7 @@ class Mode(enum.IntEnum):
     COMMAND = 0  # apply this current (in the held session)
     REQUEST = 1  # grant me the session (no current)
     RELEASE = 2  # my stream ends here: release the session, ramp to zero
+    IN_DRIVE = 3  # run your own observer, at this friction level (per mille)
 
 
 @dataclass(frozen=True)
@@ -222,7 +226,7 @@ class DriveClock:
         if mode is Mode.RELEASE:
             self.release()
             return Verdict.RELEASED
-        self.last_stamp = stamp
+        self.last_stamp = stamp  # a command, or the in-drive observer's level
         self.idle_cycles = 0
         return Verdict.ACCEPTED
 

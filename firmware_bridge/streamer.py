@@ -22,7 +22,14 @@ from typing import Protocol
 import can
 
 from firmware_bridge.busload import bus_load
-from firmware_bridge.freshness import AGE_TOLERANCE_CYCLES, Mode, age_by_time, is_fresh
+from firmware_bridge.freshness import (
+    AGE_TOLERANCE_CYCLES,
+    MAX_IN_DRIVE_LEVEL_RAW,
+    PER_MILLE,
+    Mode,
+    age_by_time,
+    is_fresh,
+)
 from firmware_bridge.profiles.base import CompensatorTx, get_profile
 from firmware_bridge.settings import CanConfig
 from firmware_bridge.supervisor import saturate, toward_zero
@@ -47,13 +54,14 @@ class Shaper:
     ramp_cycles: int
     value_raw: int = 0
 
-    def step(self, raw: int | None) -> int:
-        """Next command; ``None`` asks for the ramp towards zero (stop or fault)."""
+    def step(self, raw: int | None, limit_raw: int | None = None) -> int:
+        """Next command; ``None`` asks for the ramp towards zero (stop or fault); a value is
+        saturated at ``limit_raw`` (default: the current's limit)."""
         if raw is None:
             step = math.ceil(self.limit_raw / self.ramp_cycles)
             self.value_raw = toward_zero(self.value_raw, step)
         else:
-            self.value_raw = saturate(raw, self.limit_raw)
+            self.value_raw = saturate(raw, self.limit_raw if limit_raw is None else limit_raw)
         return self.value_raw
 
 
@@ -84,6 +92,7 @@ class Streamer:
     source_faults: int = 0
     foreign_frames: int = 0  # frames with our exclusive ids sent by another node
     taken: str | None = None  # why the channel is not this compensator's, once it is not
+    in_drive: bool = False  # the drive runs its own observer: the source gives its level
     sent_log: list[tuple[float, float, bytes]] = field(default_factory=list)
     send_clock: Callable[[], float] | None = None  # stamps the log at the send, if given
     # What this node sent lately: some transports (udp_multicast) hand a node its own
@@ -112,7 +121,11 @@ class Streamer:
         if current_A is not None and not math.isfinite(current_A):
             self.source_faults += 1
             current_A = None
-        if self.tx.claim.granted:
+        if self.tx.claim.granted and self.in_drive:  # the level, per mille
+            mode = Mode.IN_DRIVE
+            level = None if current_A is None else round(PER_MILLE * current_A)
+            raw = self.shaper.step(level, MAX_IN_DRIVE_LEVEL_RAW)
+        elif self.tx.claim.granted:
             mode = Mode.COMMAND
             raw = self.shaper.step(None if current_A is None else self.tx.to_raw(current_A))
         else:  # the drive applies nothing of ours until it grants the session
@@ -149,7 +162,7 @@ class Streamer:
             self.send_errors += 1  # the bus is off; the drive's timeout takes over
 
     def _log_sent(self, msg: can.Message, mode: Mode, before: float, now_s: float) -> None:
-        if mode is Mode.COMMAND:  # the audit's record of what may be applied
+        if mode in (Mode.COMMAND, Mode.IN_DRIVE):  # the audit's record of what may be applied
             self.frames_sent += 1
             after = now_s if self.send_clock is None else self.send_clock()
             self.sent_log.append((before, after, bytes(msg.data)))

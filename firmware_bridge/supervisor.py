@@ -80,12 +80,15 @@ class Supervisor:
         """The link ends now (the session was released): ramp to zero from the next cycle."""
         self.link_lost = True
 
-    def tick(self, fresh_raw: int | None) -> int:
-        """Advance one drive cycle and return the value applied in it."""
+    def tick(self, fresh_raw: int | None, limit_raw: int | None = None) -> int:
+        """Advance one drive cycle and return the value applied in it; a fresh value is
+        saturated at ``limit_raw`` (default: the current's limit)."""
         if fresh_raw is not None:
             self.cycles_since_fresh = 0
             self.link_lost = False
-            self.output_raw = saturate(fresh_raw, self.limit_raw)
+            self.output_raw = saturate(
+                fresh_raw, self.limit_raw if limit_raw is None else limit_raw
+            )
             return self.output_raw
         self.cycles_since_fresh += 1
         if self.cycles_since_fresh > self.timeout_cycles:

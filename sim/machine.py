@@ -14,7 +14,7 @@ over it), the true force constant, the encoder, the noise on the measured curren
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -132,6 +132,8 @@ class CspAxis:
         servo_s = s.controller.servo_period_s
         self.substeps = max(1, round(cycle_period_s / servo_s))
         self.cycle_period_s = cycle_period_s
+        self.servo_period_s = cycle_period_s / self.substeps
+        self.force_constant_N_per_A = m.force_constant_N_per_A
         truth = ScaledFriction(ball_set_friction(s.ball), s.plant.ball_set_count)
         self.axis = LinearMotorAxis(plant, truth, cycle_period_s / self.substeps)
         # the drive's loop is tuned on the nominal plant, as a drive is commissioned
@@ -161,9 +163,16 @@ class CspAxis:
         if self._stream is not None:
             self._stream.reset()
 
-    def cycle(self, target_position_m: float, torque_offset_A: float, enabled: bool) -> AxisSample:
+    def cycle(
+        self,
+        target_position_m: float,
+        torque_offset_A: float,
+        enabled: bool,
+        in_drive: Callable[[float, float], float] | None = None,
+    ) -> AxisSample:
         """One bus cycle: follow ``target_position_m`` (held if the drive is not enabled),
-        the feedforward ``torque_offset_A`` added to the loop's current command."""
+        the feedforward ``torque_offset_A`` added to the loop's current command, and
+        ``in_drive(position, velocity)`` (the drive's own observer) each servo cycle."""
         previous, before = self.targets[-1], self.targets[-2]
         if not enabled:
             target_position_m = self.position_m
@@ -176,9 +185,10 @@ class CspAxis:
         # at the target
         for i in range(self.substeps):
             if enabled:
-                command = self.controller.step(
-                    self.position_m, previous + i * step, accel, torque_offset_A
-                )
+                offset = torque_offset_A
+                if in_drive is not None:  # on what the drive measures: encoder, velocity
+                    offset += in_drive(self.position_m, self.controller.velocity_m_s)
+                command = self.controller.step(self.position_m, previous + i * step, accel, offset)
             else:
                 command = 0.0
             self.position_m = self.axis.step(command)

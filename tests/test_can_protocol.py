@@ -54,7 +54,7 @@ def test_cia402_scaling_is_per_mille_of_rated_current() -> None:
 
 
 @pytest.mark.parametrize(
-    "data", [b"\x00\x00\x01\x00\x00\x00", b"\x00\x00\x01\x00\x07\x03", b"\x00" * 5]
+    "data", [b"\x00\x00\x01\x00\x00\x00", b"\x00\x00\x01\x00\x07\x04", b"\x00" * 5]
 )
 def test_cia402_rpdo_without_session_bad_mode_or_length_is_refused(data: bytes) -> None:
     assert Cia402Codec.unpack_rpdo(data) is None

@@ -5,7 +5,7 @@
 
 #include "gms_ff.h"
 
-enum { MODE_COMMAND = 0, MODE_REQUEST = 1, MODE_RELEASE = 2 }; /* FfCommand.Mode */
+enum { MODE_COMMAND = 0, MODE_REQUEST = 1, MODE_RELEASE = 2, MODE_IN_DRIVE = 3 }; /* .Mode */
 #define SESSION_TIMEOUT_FACTOR 10u /* firmware_bridge.freshness.SESSION_TIMEOUT_FACTOR */
 
 struct ff_handler {
@@ -20,6 +20,8 @@ struct ff_handler {
     /* the value to apply, as firmware_bridge.supervisor.Supervisor */
     bool has_fresh;
     int16_t fresh_raw;
+    bool fresh_in_drive;
+    bool in_drive; /* the value applied is the level of the drive's own observer */
     int16_t output_raw;
     uint32_t cycles_since_fresh;
     bool link_lost;
@@ -128,6 +130,7 @@ static enum ff_verdict classify(struct ff_handler *h, const uint8_t *data, size_
     if (verdict == FF_ACCEPTED) {
         h->has_fresh = true;
         h->fresh_raw = msg.current;
+        h->fresh_in_drive = msg.mode == MODE_IN_DRIVE;
     } else if (verdict == FF_RELEASED) {
         h->has_fresh = false;
         h->link_lost = true; /* Supervisor.end: ramp to zero from the next tick */
@@ -161,6 +164,7 @@ int16_t ff_tick(struct ff_handler *h)
         h->cycles_since_fresh = 0;
         h->link_lost = false;
         h->output_raw = saturate(h->fresh_raw, h->cfg.limit_raw);
+        h->in_drive = h->fresh_in_drive;
     } else {
         h->cycles_since_fresh = inc_saturating(h->cycles_since_fresh);
         if (h->cycles_since_fresh > h->cfg.timeout_cycles) {
@@ -185,6 +189,8 @@ int16_t ff_tick(struct ff_handler *h)
 uint16_t ff_last_cycle(const struct ff_handler *h) { return h->last_cycle; }
 
 uint8_t ff_session(const struct ff_handler *h) { return h->session; }
+
+int ff_in_drive(const struct ff_handler *h) { return h->in_drive ? 1 : 0; }
 
 int ff_state(const struct ff_handler *h)
 {

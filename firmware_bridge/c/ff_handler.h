@@ -73,6 +73,11 @@ uint16_t ff_last_cycle(const struct ff_handler *h);
 uint8_t ff_session(const struct ff_handler *h);
 int ff_state(const struct ff_handler *h);
 
+/* 1 while the value ff_tick returns is the friction level of the drive's own observer
+ * (Mode 3, 0.1 mA = 1e-4 of the level: the firmware runs its observer, scaled by it,
+ * instead of adding the value as a current), 0 while it is a current (Mode 0). */
+int ff_in_drive(const struct ff_handler *h);
+
 /* Number of frames with the given verdict so far. */
 uint32_t ff_count(const struct ff_handler *h, int verdict);
 

@@ -8,6 +8,7 @@ import canopen
 
 from firmware_bridge.profiles.cia402.codec import (
     EMCY_SYNC_LOST,
+    FORCE_CONSTANT_MN_PER_A,
     MOTION_TPDO,
     NC_RPDO,
     POSITION_UNIT_PM,
@@ -15,6 +16,14 @@ from firmware_bridge.profiles.cia402.codec import (
     configure_drive,
     load_drive_od,
     read_object,
+    write_object,
+)
+from firmware_bridge.profiles.cia402.in_drive import (
+    TABLE_CRC,
+    TABLE_LOADED,
+    TABLE_OBJECT,
+    InDriveObserver,
+    accept_table,
 )
 from firmware_bridge.profiles.cia402.motion import PICOMETRE, AxisSample, DriveAxis
 from firmware_bridge.profiles.cia402.receiver import Cia402Receiver
@@ -71,6 +80,11 @@ class Cia402Drive:
         self.axis = axis
         self.power = PowerStateMachine()
         self.unit_m = read_object(self.node, POSITION_UNIT_PM) * PICOMETRE
+        self.in_drive: InDriveObserver | None = None  # the observer of a downloaded table
+        if axis is not None:
+            write_object(self.node, FORCE_CONSTANT_MN_PER_A, None,
+                         round(axis.force_constant_N_per_A * 1e3))  # fmt: skip
+            self.node.add_write_callback(self._on_write)
         self.target_m = 0.0
         self.sync_loss_s = SYNC_LOSS_S
         self._nc: bytes | None = None  # the NC's RPDO1 since the last SYNC
@@ -107,14 +121,32 @@ class Cia402Drive:
             self._move(out, now_s)
         return out, self.receiver.applied_data
 
+    def _on_write(self, index: int, subindex: int, od: object, data: bytes) -> None:
+        """An SDO download: a table for the observer in the drive (or an abort)."""
+        if index != TABLE_OBJECT:
+            return
+        assert self.axis is not None
+        crc = read_object(self.node, TABLE_CRC)
+        table = accept_table(bytes(data), crc, f"drive {self.node.id} 0x{TABLE_OBJECT:04X}")
+        self.in_drive = InDriveObserver(
+            table, self.axis.force_constant_N_per_A, self.axis.servo_period_s
+        )
+        self.node.data_store.setdefault(TABLE_LOADED, {})[0] = table.n_elements.to_bytes(
+            2, "little"
+        )
+
     def _move(self, offset_raw: int, now_s: float) -> None:
         assert self.axis is not None
         last_sync = self.receiver.last_sync_s
         if self.power.enabled and last_sync is not None and now_s - last_sync > self.sync_loss_s:
             self.power.fault(EMCY_SYNC_LOST)
         enabled = self.power.enabled
+        in_drive = None
+        if self.receiver.in_drive and self.in_drive is not None:
+            self.in_drive.set_level(offset_raw)  # the value is the level: no current of its own
+            in_drive, offset_raw = self.in_drive, 0
         offset_A = self.codec.from_raw(offset_raw) if enabled else 0.0
-        self.sample = self.axis.cycle(self.target_m, offset_A, enabled)
+        self.sample = self.axis.cycle(self.target_m, offset_A, enabled, in_drive)
         if enabled and abs(self.sample.following_error_m) > self.axis.max_following_error_m:
             self.power.fault(EMCY_FOLLOWING_ERROR)
             self.receiver.raise_fault(EMCY_FOLLOWING_ERROR)

@@ -18,7 +18,7 @@ current 0x6075.
 from __future__ import annotations
 
 import enum
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -65,9 +65,18 @@ class DriveAxis(Protocol):
     """The motion a drive hosts, one bus cycle per :meth:`cycle` (CSP, 0x6060 = 8)."""
 
     max_following_error_m: float
+    force_constant_N_per_A: float  # the motor's, as the drive knows it (0x2011)
+    servo_period_s: float  # the drive's servo cycle, several per bus cycle
 
-    def cycle(self, target_position_m: float, torque_offset_A: float, enabled: bool) -> AxisSample:
-        """Follow the target with the feedforward added (held in place when not enabled)."""
+    def cycle(
+        self,
+        target_position_m: float,
+        torque_offset_A: float,
+        enabled: bool,
+        in_drive: Callable[[float, float], float] | None = None,
+    ) -> AxisSample:
+        """Follow the target with the feedforward added (held in place when not enabled);
+        ``in_drive(position, velocity)`` adds the drive's own feedforward each servo cycle."""
         ...
 
 

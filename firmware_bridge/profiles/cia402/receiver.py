@@ -5,7 +5,12 @@ from __future__ import annotations
 import can
 import canopen
 
-from firmware_bridge.freshness import DriveClock, session_timeout_cycles
+from firmware_bridge.freshness import (
+    MAX_IN_DRIVE_LEVEL_RAW,
+    DriveClock,
+    Mode,
+    session_timeout_cycles,
+)
 from firmware_bridge.profiles.cia402.codec import (
     ABORT_ACTIONS,
     ABORT_CONNECTION_OPTION,
@@ -59,7 +64,8 @@ class Cia402Receiver:
             cfg.max_frame_age_cycles, session_timeout_cycles(self.supervisor.timeout_cycles)
         )
         self.window: list[bytes] = []  # RPDOs since the last SYNC
-        self.fresh: tuple[int, bytes] | None = None
+        self.fresh: tuple[int, bytes, bool] | None = None  # value, frame, in-drive level?
+        self.in_drive = False  # the value applied is the level of the drive's own observer
         self.applied_data: bytes | None = None
         self.last_sync_s: float | None = None
         self.last_heartbeat_s: float | None = None
@@ -104,7 +110,7 @@ class Cia402Receiver:
             verdict = self.clock.judge(command.cycle, command.session, command.mode)
             self.counts.add(verdict)
             if verdict is Verdict.ACCEPTED:
-                self.fresh = (command.raw, data)
+                self.fresh = (command.raw, data, command.mode is Mode.IN_DRIVE)
             elif verdict is Verdict.RELEASED:  # a clean stop: no timeout, no fault follows
                 self.fresh = None
                 self.supervisor.end()
@@ -140,8 +146,12 @@ class Cia402Receiver:
         fresh = None if self.active_faults - {EMCY_RPDO_TIMEOUT} else self.fresh
         self.fresh = None
         was_lost = self.supervisor.link_lost
-        out = self.supervisor.tick(fresh[0] if fresh else None)
+        # an in-drive level is no current: saturated at MAX_LEVEL, ramped to zero alike
+        limit = MAX_IN_DRIVE_LEVEL_RAW if fresh and fresh[2] else None
+        out = self.supervisor.tick(fresh[0] if fresh else None, limit)
         self.applied_data = fresh[1] if fresh else None
+        if fresh:
+            self.in_drive = fresh[2]
         if self.supervisor.link_lost and not was_lost:
             self.raise_fault(EMCY_RPDO_TIMEOUT)
         elif fresh:

@@ -5,7 +5,7 @@
 
 from __future__ import annotations
 
-from firmware_bridge.freshness import DriveClock, session_timeout_cycles
+from firmware_bridge.freshness import DriveClock, Mode, session_timeout_cycles
 from firmware_bridge.profiles.e2e.codec import E2eCodec
 from firmware_bridge.supervisor import RejectCounts, Supervisor, Verdict
 
@@ -29,6 +29,8 @@ class E2eReceiver:
         self.counts = RejectCounts()
         self.fresh_raw: int | None = None
         self.fresh_data: bytes | None = None
+        self.fresh_in_drive = False
+        self.in_drive = False  # the value applied is the level of the drive's own observer
         self.last_cycle = 0  # the cycle the last tick ran
 
     def on_frame(self, data: bytes) -> Verdict:
@@ -44,6 +46,7 @@ class E2eReceiver:
         verdict = self.clock.judge(command.cycle, command.session, command.mode)
         if verdict is Verdict.ACCEPTED:
             self.fresh_raw, self.fresh_data = command.raw, bytes(data)
+            self.fresh_in_drive = command.mode is Mode.IN_DRIVE
         elif verdict is Verdict.RELEASED:
             self.fresh_raw = self.fresh_data = None
             self.supervisor.end()
@@ -51,6 +54,8 @@ class E2eReceiver:
 
     def tick(self) -> int:
         """One drive cycle: apply the fresh value, if any; the applied raw value."""
+        if self.fresh_raw is not None:
+            self.in_drive = self.fresh_in_drive
         out = self.supervisor.tick(self.fresh_raw)
         self.fresh_raw = None
         self.last_cycle = self.clock.cycle

@@ -51,6 +51,12 @@ def register(subparsers: Any) -> None:
         choices=(0.25, 0.5, 1.0),
         help="length of the identification profile (1.0: about 40 s)",
     )
+    p.add_argument(
+        "--in-drive",
+        action="store_true",
+        help="also download the extended table into the drive (SDO, 0x2100) and test it "
+        "run there, at the drive's servo rate (a drive with the gms-comp observer)",
+    )
     p.add_argument("--json", action="store_true", help="print the document as JSON on stdout")
     p.add_argument("--report", type=output_dir, metavar="DIR", help="write JSON and HTML here")
     p.add_argument("--table", type=output_file, metavar="OUT", help="write the extended table")
@@ -72,7 +78,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"commission: {message}", file=sys.stderr, flush=True)
 
     with stop_requests() as stop, stop.deferred() as stopping:
-        result = commission(cfg, s, lambda r: extended_table(r, path), args.scale, stopping, say)
+        result = commission(cfg, s, lambda r: extended_table(r, path), args.scale, stopping, say,
+                            in_drive=args.in_drive)  # fmt: skip
     doc = result.to_json()
     doc["interrupted"] = stopping.is_set()
     written: list[Path] = []

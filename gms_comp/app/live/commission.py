@@ -7,7 +7,8 @@ With no NC on the bus the compensator drives the axis itself (NC and SYNC master
    as its baseline: the cause of what it does not explain; the extended table is the
    physics table with the effects found (the calibration is reported, not applied);
 3. it builds the feedforwards to compare: none, Coulomb+viscous fitted to the recording,
-   the physics table (the ball model reduced, for the whole guide) and the extended table;
+   the physics table (the ball model reduced, for the whole guide) and the extended table,
+   and, for a drive that runs the observer itself, the extended table downloaded into it;
 4. it runs the same reversal test (the ``[scenario]`` trajectory) once per feedforward,
    sending it in each cycle with the NC's target (look-ahead from the program itself),
    and scores the following error the drive reports: peak after the reversals, RMS.
@@ -17,15 +18,18 @@ The axis is left stopped and disabled after each run, also on Ctrl-C.
 
 from __future__ import annotations
 
+import json
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
+from firmware_bridge.profiles.cia402.download import download_table, store_table
+from firmware_bridge.profiles.cia402.drive import Cia402Drive
 from firmware_bridge.profiles.cia402.motion import NcProgram
-from firmware_bridge.session import DriveFactory
+from firmware_bridge.session import DriveFactory, Rig
 from firmware_bridge.settings import CanConfig
 from gms_comp.app.live.recording import (
     RecordedTrace,
@@ -38,7 +42,7 @@ from gms_comp.measured.diagnosis.run import Diagnosis, DiagnosisConfig, diagnose
 from gms_comp.measured.traces import Trace
 from gms_comp.runtime.observer import ForceModel, FrictionObserver
 from gms_comp.tables.reduction import reduce_to_gms
-from gms_comp.tables.table import GmsTable
+from gms_comp.tables.table import GmsTable, table_to_dict
 from sim.scenarios import Scenario, build_reference
 from sim.strategies.coulomb_viscous import CoulombViscous
 
@@ -114,6 +118,11 @@ def _reversals(target: FloatArray) -> list[int]:
     return [int(rows[moving[i + 1]]) for i in np.flatnonzero(signs[1:] != signs[:-1])]
 
 
+def _level_one(program: NcProgram) -> float | None:
+    """The in-drive observer's level: its table as it is, while the program moves."""
+    return 1.0 if program.moving else 0.0
+
+
 def verify(
     cfg: CanConfig,
     s: Scenario,
@@ -121,15 +130,38 @@ def verify(
     model: GmsTable | ForceModel | None,
     stop_request: threading.Event | None = None,
     drive: DriveFactory | None = None,
+    in_drive: bool = False,
 ) -> Verification:
-    """One reversal test with ``model`` as feedforward; its errors from the drive's TPDOs."""
+    """One reversal test with ``model`` as feedforward; its errors from the drive's TPDOs.
+
+    ``in_drive``: ``model`` (a table) is downloaded into the drive, which runs the observer
+    at its servo rate on what it measures; the compensator sends only the level, 1.
+    """
     period = cfg.cycle_period_s
     targets = reversal_targets(s, period).tolist()
-    feedforward = program_feedforward(model, s, period)
     window = max(1, round(s.scenario.reversal_window_s / period))
+    prepare = None
+    feedforward: Callable[[NcProgram], float | None]
+    if in_drive:
+        if not isinstance(model, GmsTable):
+            raise TypeError("only a table goes into the drive")
+        data = json.dumps(table_to_dict(model)).encode()
+
+        def prepare(rig: Rig) -> None:
+            if drive is None:
+                download_table(rig.cfg, data)
+            else:  # a built-in drive stepped here: the download's effect, without the bus
+                store_table(cast(Cia402Drive, rig.drive.side).node, data)
+            rig.streamer.in_drive = True
+
+        feedforward = _level_one
+
+    else:
+        feedforward = program_feedforward(model, s, period)
     recording, _ = drive_and_record(
-        cfg, targets, stop_request=stop_request, feedforward=feedforward, drive=drive
-    )
+        cfg, targets, stop_request=stop_request, feedforward=feedforward, drive=drive,
+        prepare=prepare,
+    )  # fmt: skip
     target, position = recording.column("reference_position_m"), recording.column("position_m")
     # the drive's position at a SYNC has followed the target of the SYNC before (the row's)
     error = target - position
@@ -186,9 +218,11 @@ def commission(
     stop_request: threading.Event | None = None,
     progress: Progress = lambda message: None,
     drive: DriveFactory | None = None,
+    in_drive: bool = False,
 ) -> Commissioning:
     """Record, diagnose, build the tables, verify each feedforward (module docstring);
-    with ``drive``, on a built-in drive stepped cycle by cycle."""
+    with ``drive``, on a built-in drive stepped cycle by cycle; with ``in_drive``, once
+    more with the extended table downloaded into the drive, which runs the observer."""
     period = cfg.cycle_period_s
     progress("recording the identification profile")
     targets = profile_targets(period, scale).tolist()
@@ -217,6 +251,9 @@ def commission(
             break
         progress(f"reversal test with feedforward {name}")
         runs.append(verify(cfg, s, name, model, stop_request, drive))
+    if in_drive and not (stop_request is not None and stop_request.is_set()):
+        progress("reversal test with the extended table in the drive")
+        runs.append(verify(cfg, s, "extended_in_drive", extended, stop_request, drive, True))
     return Commissioning(recorded, result, extended, runs, cv)
 
 

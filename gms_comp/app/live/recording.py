@@ -91,6 +91,7 @@ def drive_and_record(
     stop_request: threading.Event | None = None,
     feedforward: Feedforward | None = None,
     drive: DriveFactory | None = None,
+    prepare: Callable[[Rig], None] | None = None,
 ) -> tuple[Recording, dict[str, Any]]:
     """Drive the axis along ``targets`` as NC and SYNC master and record it; with
     ``feedforward``, the torque offset of each cycle from it (else 0 A).
@@ -99,10 +100,13 @@ def drive_and_record(
     drive is built in and stepped in the same thread, one cycle after the other (exact
     and repeatable, as the simulated closed loop runs). Returns the recording and the
     stream's report. A stop request ends the program early, the axis disabled.
+    ``prepare`` runs on the open rig first (a table download for the drive's own observer).
     """
     cfg = replace(cfg, profile="cia402", sync_master=True)
     with Rig(cfg, faults, seed, builtin_drive=drive is not None, drive=drive) as rig:
         tx = cast(Cia402Tx, rig.tx)
+        if prepare is not None:
+            prepare(rig)
         rig.streamer.bus.send(_nmt_start(cfg))
         tx.program = NcProgram(list(targets), tx.observed.unit_m, HOLD_CYCLES)
         tx.recorder = Recorder(tx.codec, tx.observed.unit_m, cfg.rated_current_A)
