@@ -10,7 +10,9 @@ Every run starts ``gms-comp machine`` in its own process on python-can's ``udp_m
 - ``run`` at 1 kHz against ``gms-comp machine --nc``: the share of SYNCs answered within
   the cycle, SYNC-to-frame p50/p99, stale or foreign frames the drive applied, and the
   tracking error with the extended table (of the ripple commissioning) against none;
-- ``record`` under dropped and delayed TPDOs: samples, lost, late.
+- ``record`` under dropped and delayed TPDOs: samples, lost, late;
+- the observer in the drive (the table downloaded, the servo at 4, 8, 16 kHz) against
+  the feedforward over CAN at 1 kHz with and without look-ahead, stepped over the bus.
 
 Prints one JSON document. Real time on a shared 2-core machine: run it idle.
 
@@ -135,10 +137,50 @@ def recording(folder: Path) -> dict[str, Any]:
     return out
 
 
+def in_drive_vs_can() -> dict[str, Any]:
+    """Stepped over the bus, the default machine, the physics table: the feedforward over
+    CAN at 1 kHz (look-ahead 0 and 1 cycle) against the observer in the drive at its servo
+    rate (4, 8, 16 kHz), peak reversal and RMS following error in um."""
+    import dataclasses
+
+    from firmware_bridge.profiles.cia402.drive import Cia402Drive
+    from firmware_bridge.settings import load_can_config
+    from gms_comp.app.live.commission import physics_table, verify
+    from sim.machine import CspAxis, load_machine
+
+    out: dict[str, Any] = {}
+    for rate in (4000.0, 8000.0, 16000.0):
+        m = load_machine()
+        s = m.scenario
+        s = dataclasses.replace(s, controller=dataclasses.replace(s.controller, servo_rate_Hz=rate))
+        m = dataclasses.replace(m, scenario=s)
+        cfg = dataclasses.replace(load_can_config(), channel=f"bench-in-drive-{rate:g}")
+
+        def drive(c: Any, bus: Any, m: Any = m) -> Cia402Drive:
+            return Cia402Drive(c, bus, CspAxis(m, c.cycle_period_s))
+
+        table = physics_table(s)
+        runs = {f"in_drive_{rate / 1e3:g}kHz": verify(cfg, s, "in", table, None, drive, True)}
+        if rate == 4000.0:
+            runs["none"] = verify(cfg, s, "none", None, None, drive)
+            for ahead in (0, 1):
+                comp = dataclasses.replace(s.compensator, look_ahead_cycles=ahead)
+                s_ahead = dataclasses.replace(s, compensator=comp)
+                runs[f"can_1kHz_lookahead_{ahead}"] = verify(cfg, s_ahead, "can", table, None,
+                                                             drive)  # fmt: skip
+        for name, v in runs.items():
+            out[name] = {
+                "peak_reversal_error_um": round((v.peak_reversal_error_m or 0) * 1e6, 4),
+                "rms_error_um": round(v.rms_error_m * 1e6, 4),
+            }
+            print(f"in drive vs CAN {name}: {out[name]}", file=sys.stderr)
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--scale", type=float, default=0.25, choices=(0.25, 0.5, 1.0))
-    parser.add_argument("--only", choices=("commission", "run", "record"))
+    parser.add_argument("--only", choices=("commission", "run", "record", "in_drive"))
     args = parser.parse_args()
     doc: dict[str, Any] = {"load_1min_start": os.getloadavg()[0]}
     with tempfile.TemporaryDirectory() as tmp:
@@ -149,6 +191,8 @@ def main() -> None:
             doc["run"] = running(folder)
         if args.only in (None, "record"):
             doc["record"] = recording(folder)
+        if args.only in (None, "in_drive"):
+            doc["in_drive_vs_can"] = in_drive_vs_can()
     doc["load_1min_end"] = os.getloadavg()[0]
     print(json.dumps(doc, indent=2))
 
