@@ -39,16 +39,18 @@ from gms_comp.validation import MAX_TRACE_SAMPLES, int_in_range
 #: 334 us at 3 kHz, differ by 0.3 %); beyond it the samples are placed at their stamps.
 MAX_CLOCK_JITTER = 0.1
 #: Longest time step, in grid steps, interpolated over (up to three missing samples in a
-#: row); a longer one is a gap in which the axis moved unobserved.
+#: row, within the clock's jitter); a longer one is a gap in which the axis moved
+#: unobserved.
 MAX_GAP_STEPS = 4.0
 #: Share of a trace's duration over which a sample rate must be held to set the grid of
 #: a trace sampled at several rates (a brief slow-down of the recorder does not decimate
 #: the whole trace).
 MIN_RATE_SHARE = 0.1
-#: Slowest sample rate, Hz: a friction trace resolves reversals and break-aways within
-#: tens of ms; a slower clock is a time column in ms (a 1 kHz trace read as 1 Hz) or a
-#: record no diagnosis can use.
-MIN_SAMPLE_RATE_HZ = 10.0
+#: Slowest sample rate, Hz: presliding after a reversal and a break-away last a few ms,
+#: which a slower record does not resolve; and every rate from here to the fastest read
+#: with its stamps in ms falls below it (a 1 kHz trace in ms reads as 1 Hz), so ms and
+#: us stamps are always refused.
+MIN_SAMPLE_RATE_HZ = 100.0
 #: Fastest sample rate, Hz: drives and test stands log at up to tens of kHz; a faster
 #: clock is a time column in another unit, or a record to decimate first.
 MAX_SAMPLE_RATE_HZ = 100e3
@@ -169,7 +171,11 @@ def read_clock(
         duration = float(time_s[stop - 1] - time_s[start])
         rate = (stop - start - 1) / duration
         return ClockReading(start, stop, None, Clock(rate, recorded, rows=(start, stop - 1)))
-    count = int(np.floor((time_s[stop - 1] - time_s[start]) / grid_step + 1e-9)) + 1
+    duration = float(time_s[stop - 1] - time_s[start])
+    steps_held = duration / grid_step
+    if abs(steps_held - round(steps_held)) <= MAX_CLOCK_JITTER:  # the last sample on the grid
+        grid_step = duration / round(steps_held)
+    count = int(np.floor(duration / grid_step + MAX_CLOCK_JITTER)) + 1
     if count > MAX_TRACE_SAMPLES:
         raise TraceError(
             source, "column time_s",
@@ -230,13 +236,15 @@ def _check_increasing(
     )
 
 
+# A rate at a bound within the rounding of printed stamps is at the bound.
+_ROUNDING = 1e-9
 # Units a time column is found in, most common first, with their factor to seconds.
 _TIME_UNITS = (("ms", 1e-3), ("us", 1e-6))
 
 
 def _check_rate(step: float, source: str, time_expr: str) -> None:
     rate = 1.0 / step
-    if MIN_SAMPLE_RATE_HZ <= rate <= MAX_SAMPLE_RATE_HZ:
+    if MIN_SAMPLE_RATE_HZ * (1 - _ROUNDING) <= rate <= MAX_SAMPLE_RATE_HZ * (1 + _ROUNDING):
         return
     seen = f"samples {step:.4g} s apart ({rate:.4g} Hz)"
     if rate < MIN_SAMPLE_RATE_HZ:
@@ -245,11 +253,8 @@ def _check_rate(step: float, source: str, time_expr: str) -> None:
             for name, factor in _TIME_UNITS
             if MIN_SAMPLE_RATE_HZ <= rate / factor <= MAX_SAMPLE_RATE_HZ
         ]
-        fix = (
-            f"the time looks like {' or '.join(units)}"
-            if units
-            else f"record at {MIN_SAMPLE_RATE_HZ:g} Hz or faster"
-        )
+        record = f"record at {MIN_SAMPLE_RATE_HZ:g} Hz or faster"
+        fix = f"the time looks like {' or '.join(units)}; if not, {record}" if units else record
         raise TraceError(
             source, "column time_s",
             f"{seen}, slower than the {MIN_SAMPLE_RATE_HZ:g} Hz a friction trace needs: {fix}",
@@ -264,7 +269,7 @@ def _check_rate(step: float, source: str, time_expr: str) -> None:
 
 def _pieces(steps: FloatArray, grid_step: float) -> list[tuple[int, int]]:
     """Sample ranges [start, stop) between gaps."""
-    gaps = np.flatnonzero(steps > MAX_GAP_STEPS * grid_step)
+    gaps = np.flatnonzero(steps > MAX_GAP_STEPS * (1.0 + MAX_CLOCK_JITTER) * grid_step)
     starts = [0, *(int(g) + 1 for g in gaps)]
     stops = [*(int(g) + 1 for g in gaps), steps.size + 1]
     return list(zip(starts, stops, strict=True))

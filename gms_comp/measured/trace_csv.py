@@ -25,6 +25,9 @@ from gms_comp.validation import MAX_TRACE_BYTES, MAX_TRACE_SAMPLES
 MAX_TRACE_COLUMNS = 64
 #: Bytes of a CSV trace's header row (64 names of up to a kilobyte each).
 MAX_HEADER_BYTES = 64 << 10
+#: Mean bytes of a CSV trace's row (64 numbers of 17 digits need about 1.5 kB): a file of
+#: a few giant rows would be parsed as a few giant strings.
+MAX_ROW_BYTES = 16 << 10
 
 # Bytes read at once when counting rows (the memory the count takes).
 _CHUNK_BYTES = 1 << 20
@@ -111,6 +114,9 @@ def _rows(path: Path, size: int, head: bytes, body_start: int) -> int:
     with path.open("rb") as fh:
         fh.seek(body_start)
         while chunk := fh.read(_CHUNK_BYTES):
+            if b"\x00" in chunk:
+                at = rows + chunk[: chunk.index(b"\x00")].count(b"\n") + 2
+                raise TraceError(src, f"row {at}", "holds a NUL byte: not a text file")
             rows += chunk.count(b"\n")
             last = chunk[-1:]
             if rows > MAX_TRACE_SAMPLES:
@@ -118,7 +124,13 @@ def _rows(path: Path, size: int, head: bytes, body_start: int) -> int:
                     src, f"row {MAX_TRACE_SAMPLES + 2}",
                     f"more than {MAX_TRACE_SAMPLES} samples; cut the record into parts",
                 )  # fmt: skip
-    return rows + (last != b"\n")
+    rows += last != b"\n"
+    if rows and (size - body_start) / rows > MAX_ROW_BYTES:
+        raise TraceError(
+            src, "", f"rows of {(size - body_start) / rows:.0f} bytes on average, more than "
+            f"the {MAX_ROW_BYTES} of a trace's row",
+        )  # fmt: skip
+    return rows
 
 
 def _plain_csv(
@@ -131,10 +143,7 @@ def _plain_csv(
     refused here with its row."""
     try:
         with path.open(encoding="utf-8-sig", newline="") as fh:
-            table = np.loadtxt(
-                fh, delimiter=",", skiprows=1, comments=None, ndmin=2, dtype=float,
-                max_rows=rows,
-            )  # fmt: skip
+            table = np.loadtxt(fh, delimiter=",", skiprows=1, comments=None, ndmin=2, dtype=float)
     except (UnicodeDecodeError, ValueError):
         return None
     if table.shape != (rows, len(header)):

@@ -11,15 +11,16 @@ Grammar (``+ - * /``, parentheses, unary signs; usual precedence)::
     unary  := ("+" | "-") unary | atom
     atom   := NUMBER | NAME | "(" expr ")"
 
-A NUMBER is a decimal number (``0.001``, ``1e-6``). A NAME is, in this order: a
-double-quoted name (``"t[ms]"``; a quote inside is doubled,
-as in CSV), a header name written as it is (``t[ms]``, ``pos (um)``, ``F/N``: the longest
-header name that starts there and ends before an operator, a space or the end), or an
-identifier (``[A-Za-z_][A-Za-z0-9_]*``). A header name wins over the operators inside it:
-with a column ``a-b`` the expression ``a-b`` is that column; write ``"a"-"b"`` for the
-difference. Expressions are bounded in length and nesting; a division by the number zero
-is refused when parsed, one by a column that holds a zero gives a non-finite value that the
-loader then refuses with its row.
+A NUMBER is a decimal number (``0.001``, ``1e-6``). A NAME is a double-quoted name
+(``"t[ms]"``; a quote inside is doubled, as in CSV), a header name written as it is
+(``t[ms]``, ``pos (um)``, ``F/N``: the longest header name that starts there and ends
+before an operator, a space or the end), or an identifier (``[A-Za-z_][A-Za-z0-9_]*``).
+The longest token wins: a header name over the operators inside it (with a column
+``a-b`` the expression ``a-b`` is that column; write ``"a"-"b"`` for the difference) and
+over a number it starts with (``0/``); a number over a header name as long (a column
+named ``1`` must be quoted). Expressions are bounded in length and nesting; a division
+by the number zero is refused when parsed, one by a column that holds a zero gives a
+non-finite value that the loader then refuses with its row.
 """
 
 from __future__ import annotations
@@ -157,15 +158,11 @@ def _tokens(text: str, names: list[str], where: str) -> list[Token]:
             i += 1
         elif ch == '"':
             i = _quoted(text, i, where, out)
-        elif (number := _number(text, i)) is not None:
-            value = float(number.group())
-            if not math.isfinite(value):
-                raise TraceError(where, "", f"number {number.group()} is not finite")
-            out.append(("num", value))
-            i = number.end()
-        elif (header := _header_name(text, i, names)) is not None:
-            out.append(("name", header))
-            i += len(header)
+        elif (token := _longest(text, i, names)) is not None:
+            kind, value, i = token
+            if kind == "num" and not math.isfinite(float(value)):
+                raise TraceError(where, "", f"number {value} is not finite")
+            out.append((kind, float(value) if kind == "num" else value))
         elif ch in _OPERATORS:
             out.append(("op", ch))
             i += 1
@@ -200,13 +197,17 @@ def _quoted(text: str, start: int, where: str, out: list[Token]) -> int:
         return end + 1
 
 
-def _number(text: str, i: int) -> re.Match[str] | None:
-    """The number written at ``text[i:]`` if it ends at an operator, a space or the end
-    (a header name that starts with digits, ``2x``, is not a number)."""
-    found = _NUMBER.match(text, i)
-    if found is None or (found.end() < len(text) and text[found.end()] not in _ENDS_NAME):
-        return None
-    return found
+def _longest(text: str, i: int, names: list[str]) -> tuple[str, str, int] | None:
+    """The number or the header name written at ``text[i:]``, whichever is longer (a
+    number on a tie): ``0/`` is the column ``0/``, ``1e-6`` the number even beside a
+    column ``1e``. Returns (kind, text, end) or None."""
+    number = _NUMBER.match(text, i)
+    header = _header_name(text, i, names)
+    if number is not None and (header is None or number.end() - i >= len(header)):
+        return "num", number.group(), number.end()
+    if header is not None:
+        return "name", header, i + len(header)
+    return None
 
 
 def _header_name(text: str, i: int, names: list[str]) -> str | None:

@@ -37,9 +37,10 @@ MAX_SPEED_M_S = 10.0
 MAX_ACCELERATION_M_S2 = 1000.0
 #: Largest force, N: more than any linear motor or friction device exerts; looks like mN.
 MAX_FORCE_N = 1e6
-#: Smallest swing of a varying force over the whole trace, N: the friction of the smallest
-#: ball guides (miniature rails) is about 0.1 N each way; a smaller swing looks like kN.
-MIN_FORCE_SWING_N = 0.05
+#: Smallest peak of a non-zero force over the whole trace, N: the friction of the smallest
+#: ball guides (miniature rails) is about 0.1 N; a force that never reaches a quarter of it
+#: looks like kN.
+MIN_FORCE_N = 0.025
 
 # Speed and acceleration are read from the position over these windows (at least one
 # sample step): long enough that an encoder count or the noise of a sample does not count
@@ -109,21 +110,21 @@ def check_velocity(velocity_m_s: FloatArray, source: str, expr: str = "velocity_
 
 
 def check_force(force_N: FloatArray, source: str, expr: str = "force_N") -> None:
-    """Refuse a force larger than any axis exerts or varying less than any guide's friction
-    (a constant force is left to the diagnosis, which says why it cannot use it)."""
-    top, swing = float(np.max(np.abs(force_N))), float(np.ptp(force_N))
+    """Refuse a force larger than any axis exerts or smaller than any guide's friction (a
+    force of zero throughout is left to the diagnosis, which says why it cannot use it)."""
+    top = float(np.max(np.abs(force_N)))
     if top > MAX_FORCE_N:
         seen = f"reaches {top:.4g} N, more than the {MAX_FORCE_N:g} N of any linear axis"
-    elif 0.0 < swing < MIN_FORCE_SWING_N:
+    elif 0.0 < top < MIN_FORCE_N:
         seen = (
-            f"varies by {swing:.3g} N over the trace, less than the {MIN_FORCE_SWING_N:g} N of "
-            "the smallest ball guide's friction"
+            f"never exceeds {top:.3g} N, less than the {MIN_FORCE_N:g} N the friction of the "
+            "smallest ball guide reaches"
         )
     else:
         return
 
     def fits(factor: float) -> bool:
-        return top * factor <= MAX_FORCE_N and swing * factor >= MIN_FORCE_SWING_N
+        return MIN_FORCE_N <= top * factor <= MAX_FORCE_N
 
     raise TraceError(
         source, "column force_N",
@@ -133,15 +134,16 @@ def check_force(force_N: FloatArray, source: str, expr: str = "force_N") -> None
 
 def position_resolution(position_m: FloatArray) -> float:
     """The position's smallest meaningful step, m: its encoder count (the 5th percentile
-    of the non-zero changes between samples) or its noise (from the median second
-    difference, sqrt(6) x the noise for white noise), whichever is larger."""
+    of the non-zero changes between samples) or its noise, whichever is larger. The noise
+    is read from the median third difference (white noise gives sqrt(20) x its RMS; a
+    motion sampled n times a period only (2 pi / n)^3 of its amplitude)."""
     x = np.asarray(position_m, dtype=float)
     changes = np.abs(np.diff(x))
     changes = changes[changes > 0.0]
     count = float(np.percentile(changes, 5)) if changes.size else 0.0
-    if x.size < 3:
+    if x.size < 4:
         return count
-    noise = float(np.median(np.abs(np.diff(x, 2)))) / 0.6745 / np.sqrt(6.0)
+    noise = float(np.median(np.abs(np.diff(x, 3)))) / 0.6745 / np.sqrt(20.0)
     return max(count, noise)
 
 

@@ -205,11 +205,18 @@ def load_trace(
 
 def input_json(trace: Trace) -> dict[str, Any]:
     """How a trace was read, for the diagnosis JSON's ``input``: its samples and clock
-    (``resampled_from_Hz``, ``segment``) and, when not used as recorded, a ``note``."""
-    if trace.clock is None:
-        return {"samples": len(trace), "sample_rate_Hz": 1.0 / trace.sample_time_s}
-    doc: dict[str, Any] = {"samples": len(trace), **trace.clock.to_json()}
-    if note := trace.clock.describe():
+    (``resampled_from_Hz``, ``segment``), the motion's figures that its units are checked
+    by, and, when not used as recorded, a ``note``."""
+    dt = trace.sample_time_s
+    doc: dict[str, Any] = {"samples": len(trace), "sample_rate_Hz": 1.0 / dt}
+    if trace.clock is not None:
+        doc.update(trace.clock.to_json())
+    doc.update(
+        stroke_m=float(np.ptp(trace.position_m)),
+        top_speed_m_s=trace_units.peak_speed(trace.position_m, dt),
+        top_acceleration_m_s2=trace_units.peak_acceleration(trace.position_m, dt),
+    )
+    if trace.clock is not None and (note := trace.clock.describe()):
         doc["note"] = note
     return doc
 

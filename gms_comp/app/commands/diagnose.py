@@ -198,8 +198,8 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
         f"(noise {doc['noise_rms_N']:.3g} N)",
     ]
     for key, what in (("input", "input"), ("validation_input", "validation input")):
-        if doc.get(key, {}).get("note"):
-            lines.append(f"{what}: {doc[key]['note']}")
+        if key in doc:
+            lines.append(f"{what}: {_input_text(doc[key])}")
     if b.get("position") == "encoder counts read as motion":
         lines.append(
             f"position: the encoder's counts read as motion (a count moves the model "
@@ -355,6 +355,16 @@ def _benchmark_errors(trace: Trace, validation: Trace | None, result: Diagnosis)
             ),
         }
     return out
+
+
+def _input_text(doc: Mapping[str, Any]) -> str:
+    """The trace's clock and motion figures (a unit slip shows in them), and how its
+    time stamps were read when not as recorded."""
+    text = (
+        f"{doc['sample_rate_Hz']:.6g} Hz, stroke {doc['stroke_m']:.4g} m, top speed "
+        f"{doc['top_speed_m_s']:.4g} m/s, top acceleration {doc['top_acceleration_m_s2']:.4g} m/s^2"
+    )
+    return f"{text}; {doc['note']}" if doc.get("note") else text
 
 
 def _every(baseline: Mapping[str, Any]) -> str:
