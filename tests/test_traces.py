@@ -56,10 +56,10 @@ def test_canonical_csv_round_trip(tmp_path: Path) -> None:
 
 def test_error_names_file_and_missing_column(tmp_path: Path) -> None:
     p = _csv(tmp_path, "time_s,position_m,F [N]\n0,0,0\n1,1,1\n")
-    with pytest.raises(TraceError, match=r"t\.csv: column force_N: not in the file") as err:
+    with pytest.raises(TraceError, match=r"t\.csv: missing column 'force_N'") as err:
         load_trace(p)
     # the header found, and the --map that names a column of it
-    assert "(its columns: time_s, position_m, F [N])" in str(err.value)
+    assert "(the file's columns: time_s, position_m, F [N])" in str(err.value)
     assert """--map 'force_N="F [N]"'""" in str(err.value)
 
 

@@ -305,7 +305,7 @@ def _parsed(
     required column neither in the file nor mapped is refused with the header."""
     for name in REQUIRED_COLUMNS:
         if name not in mapping:
-            raise TraceError(str(path), f"column {name}", _missing(name, names, mapping))
+            raise TraceError(str(path), "", _missing(name, names, mapping))
     return {
         name: trace_map.parse(expr, names, f"{path}: --map {name}={expr}")
         for name, expr in mapping.items()
@@ -318,8 +318,8 @@ def _missing(name: str, names: Collection[str], mapping: Mapping[str, str]) -> s
     spare = [n for n in names if trace_map.quoted(n) not in used]
     example = f", e.g. --map '{name}={trace_map.quoted(spare[0])}'" if spare else ""
     return (
-        f"not in the file (its columns: {header}); name the column that holds it with "
-        f"--map {name}=EXPRESSION{example}"
+        f"missing column {name!r} (the file's columns: {header}); name the column that holds "
+        f"it with --map {name}=EXPRESSION{example}"
     )
 
 
