@@ -32,6 +32,7 @@ from tracefiles import Motion, csv_text, jittered, rate_change, repeated, with_g
 
 from gms_comp.errors import TraceError
 from gms_comp.measured import trace_csv
+from gms_comp.measured.trace_clock import Segment
 from gms_comp.measured.traces import Trace, load_trace, parse_mapping
 from gms_comp.validation import MAX_TRACE_BYTES
 
@@ -266,11 +267,12 @@ def test_a_gap_is_refused_with_its_row_and_a_segment_reads_one_piece(
     text = _one_line(err, path)
     assert f"row {at + 2}, column time_s: a gap of" in text and "--segment" in text
     pieces = [(0, at), (at, motion.samples)]
-    for choice, (a, b) in [
+    choices: list[tuple[Segment, tuple[int, int]]] = [
         (1, pieces[0]),
         (2, pieces[1]),
         ("longest", max(pieces, key=lambda p: p[1] - p[0])),
-    ]:
+    ]
+    for choice, (a, b) in choices:
         if b - a < 100:
             with pytest.raises(TraceError, match="samples, the analysis needs"):
                 load_trace(path, segment=choice)

@@ -242,7 +242,7 @@ def test_bad_mapping_entries(entry: str, message: str) -> None:
 @pytest.mark.parametrize(
     ("expr", "message"),
     [
-        ("__import__('os')", "'__import__' is not a column of the file"),
+        ("__import__('os')", "'__import__' is neither a column name nor a number"),
         ("c*1e999", "number 1e999 is not finite"),
         ("c/0", "division by zero"),
         ("(c", "a parenthesis is not closed"),
@@ -261,7 +261,9 @@ def test_bad_mapping_expressions_are_refused_when_the_file_is_read(
 
 def test_mapping_to_absent_source(tmp_path: Path) -> None:
     p = _csv(tmp_path, "a,b,c\n" + _good_rows() + "\n")
-    with pytest.raises(TraceError, match=r"--map force_N=d: 'd' is not a column of the file"):
+    with pytest.raises(
+        TraceError, match=r"--map force_N=d: 'd' is neither a column name nor a number"
+    ):
         load_trace(p, {"time_s": "a", "position_m": "b", "force_N": "d"})
 
 

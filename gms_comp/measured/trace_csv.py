@@ -50,6 +50,9 @@ def read_csv(path: Path) -> tuple[dict[str, np.ndarray], list[int]]:
     bom = _encoding(head, src)
     header_end = head.find(b"\n", bom)
     if header_end < 0 and size > len(head):
+        cells = head.count(b",") + 1
+        if cells > MAX_TRACE_COLUMNS:
+            raise TraceError(src, "row 1", f"{cells}+ columns, more than {MAX_TRACE_COLUMNS}")
         raise TraceError(src, "row 1", f"the header row is longer than {MAX_HEADER_BYTES} bytes")
     header = _header(head[bom : header_end if header_end >= 0 else len(head)], src)
     rows = _rows(path, size, head, header_end + 1 if header_end >= 0 else size)

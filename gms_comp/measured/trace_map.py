@@ -175,7 +175,7 @@ def _tokens(text: str, names: list[str], where: str) -> list[Token]:
         else:
             rest = text[i:]
             raise TraceError(
-                where, "", f"{rest[:20]!r} is neither a column of the file, a number nor one of "
+                where, "", f"{rest[:20]!r} is neither a column name nor a number, nor one of "
                 f"+ - * / ( ){_header_hint(names)}",
             )  # fmt: skip
     return out
@@ -221,14 +221,14 @@ def _header_name(text: str, i: int, names: list[str]) -> str | None:
 
 
 def _not_a_column(name: str, names: Collection[str]) -> str:
-    return f"{name!r} is not a column of the file{_header_hint(names)}"
+    return f"{name!r} is neither a column name nor a number{_header_hint(names)}"
 
 
 def _header_hint(names: Collection[str]) -> str:
     if not names:
         return ""
-    shown = ", ".join(sorted(names)[:12]) + (", ..." if len(names) > 12 else "")
-    return f' (columns: {shown}; quote a name with spaces or symbols: "pos (um)")'
+    shown = ", ".join(list(names)[:12]) + (", ..." if len(names) > 12 else "")
+    return f' (the file\'s columns: {shown}; names may be quoted: "pos (um)")'
 
 
 def _shown(token: Token) -> str:
