@@ -236,8 +236,9 @@ def _check_increasing(
     )
 
 
-# A rate at a bound within the rounding of printed stamps is at the bound.
-_ROUNDING = 1e-9
+# A rate within this fraction of a bound is at the bound (the mean step of a jittered
+# clock, the rounding of printed stamps).
+_ROUNDING = 0.01
 # Units a time column is found in, most common first, with their factor to seconds.
 _TIME_UNITS = (("ms", 1e-3), ("us", 1e-6))
 
