@@ -9,9 +9,9 @@ its speed and acceleration in closed form, written as a user's logger would. Cla
   with the ``--map`` that fixes it, and that map reads the trace right (drawn where the
   slip leaves the range of ball-guided axes by a margin: see docs/traces.md for what
   physics cannot tell, such as cm on a slow short stroke);
-- clocks: jitter within the tolerance is read as recorded; a change of rate and missing
-  samples are resampled onto the coarsest held rate and said so; a gap or a repeated
-  stamp is refused naming its row; ``--segment`` reads one piece between gaps;
+- clocks: jitter, and stamps scattered around one clock, are read as recorded; a change of
+  rate and missing samples are resampled onto the coarsest held rate and said so; a gap or
+  a repeated stamp is refused naming its row; ``--segment`` reads one piece between gaps;
 - damaged and huge files: truncated or mutated bytes, sparse files of any size, are
   refused with a TraceError (or read), never another exception.
 """
@@ -201,16 +201,22 @@ def _file(folder: Path, t: np.ndarray, x: np.ndarray, f: np.ndarray) -> Path:
 
 
 @SETTINGS
-@given(motion=motions(), fraction=st.floats(0.0, 0.09), seed=st.integers(0, 99))
-def test_jitter_within_the_tolerance_is_read_as_recorded(
+@given(motion=motions(), fraction=st.floats(0.0, 0.45), seed=st.integers(0, 99))
+def test_jitter_and_scattered_stamps_are_read_as_recorded(
     tmp_path: Path, motion: Motion, fraction: float, seed: int
 ) -> None:
+    """Stamps within a quarter step of a uniform clock: every sample as recorded (each
+    position with its force), on that clock; said when the steps vary over 10 %."""
     t, x, f = motion.arrays()
     stamps = jittered(t, fraction, seed)
     trace = load_trace(_file(tmp_path, stamps, x, f))
     assert trace.clock is not None and not trace.clock.resampled
-    np.testing.assert_allclose(trace.time_s, stamps, rtol=1e-13)
     np.testing.assert_allclose(trace.position_m, x, rtol=1e-13)
+    np.testing.assert_allclose(trace.force_N, f, rtol=1e-13)
+    assert trace.sample_time_s == pytest.approx(1.0 / motion.rate_Hz, rel=0.5 / motion.samples)
+    steps = np.diff(stamps)
+    varied = np.max(np.abs(steps / np.median(steps) - 1.0)) > 0.1
+    assert ("stamp_scatter_steps" in trace.clock.to_json()) == varied
 
 
 @SETTINGS

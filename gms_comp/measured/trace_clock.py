@@ -5,11 +5,12 @@ uniform clock, and how that clock was read is part of the result (:class:`Clock`
 diagnosis JSON's ``input``). The policy, in this order (docs/traces.md):
 
 1. Time increases: a repeated stamp or one that goes back is refused with its row.
-2. The grid step: the mean step when every step is within ``MAX_CLOCK_JITTER`` of the
-   median (timer jitter, rounded stamps: the trace is used as recorded); otherwise the
-   coarsest step the recorder held over at least ``MIN_RATE_SHARE`` of the trace (the
-   median step of blocks of ``RATE_BLOCK_STEPS``), so that no rate the recorder did not
-   have is invented.
+2. Used as recorded, at the mean step: when every step is within ``MAX_CLOCK_JITTER`` of
+   the median (timer jitter, rounded stamps), or when the stamps scatter by at most
+   ``MAX_STAMP_SCATTER_STEPS`` around one uniform clock (stamps taken on receipt).
+   Otherwise the grid step is the coarsest step the recorder held over at least
+   ``MIN_RATE_SHARE`` of the trace (the median step of blocks of ``RATE_BLOCK_STEPS``),
+   so that no rate the recorder did not have is invented.
 3. Its rate lies within [``MIN_SAMPLE_RATE_HZ``, ``MAX_SAMPLE_RATE_HZ``]; outside, the
    time column's unit is wrong (stamps in ms read as s are 1000 times slower) and the
    refusal names the ``--map`` that scales it.
@@ -24,7 +25,7 @@ diagnosis JSON's ``input``). The policy, in this order (docs/traces.md):
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -38,6 +39,12 @@ from gms_comp.validation import MAX_TRACE_SAMPLES, int_in_range
 #: still read as one uniform clock (timer jitter; stamps printed with few digits, 333 and
 #: 334 us at 3 kHz, differ by 0.3 %); beyond it the samples are placed at their stamps.
 MAX_CLOCK_JITTER = 0.1
+#: Largest distance of the stamps from a uniform clock fitted through them, in its steps,
+#: read as that clock with each sample as recorded: stamps taken on receipt scatter
+#: around the sampling clock, and reading the samples on it keeps each position and
+#: force measured together (interpolating at scattered stamps would mix neighbours;
+#: a sample missing moves every later stamp by a step, far beyond it).
+MAX_STAMP_SCATTER_STEPS = 0.25
 #: Longest time step, in grid steps, interpolated over (up to three missing samples in a
 #: row, within the clock's jitter); a longer one is a gap in which the axis moved
 #: unobserved.
@@ -79,9 +86,12 @@ class Clock:
     segment: int = 1  # which piece between gaps (1-based)
     segments: int = 1  # pieces between gaps in the file
     rows: tuple[int, int] = (0, 0)  # first and last sample index of the used piece
+    # the stamps' largest distance from the uniform clock they were read on, in steps,
+    # when their steps varied more than MAX_CLOCK_JITTER (else None)
+    scatter: float | None = None
 
     def to_json(self) -> dict[str, Any]:
-        """The JSON's ``input.clock``: the rate, and how it was read when not as recorded."""
+        """The JSON's ``input``: the rate, and how it was read when not as recorded."""
         doc: dict[str, Any] = {"sample_rate_Hz": self.sample_rate_Hz}
         if self.resampled:
             doc["resampled_from_Hz"] = list(self.recorded_Hz)
@@ -91,6 +101,8 @@ class Clock:
                 "of": self.segments,
                 "samples": list(self.rows),
             }
+        if self.scatter is not None:
+            doc["stamp_scatter_steps"] = self.scatter
         return doc
 
     def describe(self) -> str:
@@ -100,6 +112,11 @@ class Clock:
             parts.append(
                 f"segment {self.segment} of {self.segments} (samples {self.rows[0] + 1}-"
                 f"{self.rows[1] + 1}, between gaps in time)"
+            )
+        if self.scatter is not None:
+            parts.append(
+                f"time stamps scattered by up to {self.scatter:.2g} of a step around a uniform "
+                f"{self.sample_rate_Hz:.6g} Hz clock: the samples read on that clock"
             )
         if self.resampled:
             low, high = self.recorded_Hz
@@ -148,6 +165,14 @@ def read_clock(
     """
     steps = np.diff(time_s)
     _check_increasing(time_s, steps, source, where)
+    n = time_s.size
+    recorded = (1.0 / float(np.max(steps)), 1.0 / float(np.min(steps)))
+    scatter = None if _uniform(steps) else _scatter(time_s)
+    if scatter is None or scatter <= MAX_STAMP_SCATTER_STEPS:
+        rate = (n - 1) / float(time_s[-1] - time_s[0])
+        _check_rate(1.0 / rate, source, time_expr)
+        _chosen([(0, n)], segment, source)
+        return ClockReading(0, n, None, Clock(rate, recorded, rows=(0, n - 1), scatter=scatter))
     grid_step = _grid_step(steps)
     _check_rate(grid_step, source, time_expr)
     pieces = _pieces(steps, grid_step)
@@ -155,23 +180,15 @@ def read_clock(
         raise _gap_error(time_s, steps, grid_step, pieces, source, where)
     index = _chosen(pieces, segment, source)
     start, stop = pieces[index]
-    if stop - start < 2:
-        raise TraceError(source, "column time_s", f"segment {index + 1} holds one sample")
     if len(pieces) > 1:  # the piece's own clock (its rate may differ from the whole's)
+        if stop - start < 2:
+            raise TraceError(source, "column time_s", f"segment {index + 1} holds one sample")
         inner = read_clock(time_s[start:stop], source, lambda i: where(i + start), time_expr)
-        inner_clock = inner.clock
-        clock = Clock(
-            inner_clock.sample_rate_Hz, inner_clock.recorded_Hz, inner_clock.resampled,
-            index + 1, len(pieces), (start, stop - 1),
-        )  # fmt: skip
+        clock = replace(
+            inner.clock, segment=index + 1, segments=len(pieces), rows=(start, stop - 1)
+        )
         return ClockReading(start, stop, inner.grid_s, clock)
-    used = steps[start : stop - 1]
-    recorded = (1.0 / float(np.max(used)), 1.0 / float(np.min(used)))
-    if _uniform(used, grid_step):
-        duration = float(time_s[stop - 1] - time_s[start])
-        rate = (stop - start - 1) / duration
-        return ClockReading(start, stop, None, Clock(rate, recorded, rows=(start, stop - 1)))
-    duration = float(time_s[stop - 1] - time_s[start])
+    duration = float(time_s[-1] - time_s[0])
     steps_held = duration / grid_step
     if abs(steps_held - round(steps_held)) <= MAX_CLOCK_JITTER:  # the last sample on the grid
         grid_step = duration / round(steps_held)
@@ -182,22 +199,29 @@ def read_clock(
             f"resampled onto its {1.0 / grid_step:.6g} Hz clock it would hold {count} samples, "
             f"more than the {MAX_TRACE_SAMPLES} a trace may have; cut the record into parts",
         )  # fmt: skip
-    grid = time_s[start] + grid_step * np.arange(count)
-    return ClockReading(
-        start, stop, grid, Clock(1.0 / grid_step, recorded, True, rows=(start, stop - 1))
-    )
+    grid = time_s[0] + grid_step * np.arange(count)
+    return ClockReading(0, n, grid, Clock(1.0 / grid_step, recorded, True, rows=(0, n - 1)))
 
 
-def _uniform(steps: FloatArray, step: float) -> bool:
-    return bool(np.max(np.abs(steps / step - 1.0)) <= MAX_CLOCK_JITTER)
+def _uniform(steps: FloatArray) -> bool:
+    """Every step within ``MAX_CLOCK_JITTER`` of the median step."""
+    return bool(np.max(np.abs(steps / np.median(steps) - 1.0)) <= MAX_CLOCK_JITTER)
+
+
+def _scatter(time_s: FloatArray) -> float:
+    """The stamps' largest distance from the uniform clock fitted through them (least
+    squares over the sample index), in steps of that clock."""
+    index = np.arange(time_s.size, dtype=float)
+    index -= index.mean()
+    centred = time_s - time_s.mean()
+    step = float(index @ centred / (index @ index))
+    return float(np.max(np.abs(centred - step * index))) / step
 
 
 def _grid_step(steps: FloatArray) -> float:
-    """The mean step of a uniform clock; else the coarsest step held over
-    ``MIN_RATE_SHARE`` of the trace (gaps do not count: blocks' medians ignore them)."""
+    """The coarsest step held over ``MIN_RATE_SHARE`` of the trace (gaps do not count:
+    blocks' medians ignore them), at least the median step."""
     median = float(np.median(steps))
-    if _uniform(steps, median):
-        return float(np.mean(steps))
     blocks = steps.size // RATE_BLOCK_STEPS
     if blocks == 0:
         return median

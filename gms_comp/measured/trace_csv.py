@@ -80,7 +80,10 @@ def _header(line: bytes, src: str) -> list[str]:
         raise TraceError(src, "row 1", f"not a text file ({err.reason})") from None
     if not text.strip():
         raise TraceError(src, "row 1", "empty header row (expected the column names)")
-    header = [h.strip() for h in next(csv.reader([text.rstrip("\r\n")]))]
+    try:
+        header = [h.strip() for h in next(csv.reader([text.rstrip("\r\n")]))]
+    except csv.Error as err:
+        raise TraceError(src, "row 1", f"not a valid CSV header ({err})") from None
     if len(header) == 1 and ";" in header[0]:
         raise TraceError(
             src, "row 1",
