@@ -40,7 +40,7 @@ COLUMNS_HELP = (
     "increasing), position_m (m) and force_N (N) are required; velocity_m_s, "
     "reference_position_m, current_A and normal_load_N are optional. EMPS .mat files "
     "(variables t, qm, qg, vir, gtau) are read directly; any other .csv/.mat with --map. "
-    "Time stamps: jitter within 10 %% of the step, or stamps within a quarter step of one "
+    "Time stamps: jitter within 10 % of the step, or stamps within a quarter step of one "
     "uniform clock, are read on that clock; missing samples, a change of rate or stamps "
     "further off are resampled onto a uniform clock (the "
     "summary and the JSON's input.resampled_from_Hz say so); a gap of more than 4 steps "
