@@ -38,8 +38,10 @@ CAP_MODULES = (
     "gms_comp.physics.config",
     "gms_comp.physics.contact",
     "gms_comp.tables.table",
-    "gms_comp.measured.traces",
     "gms_comp.measured.trace_csv",
+    "gms_comp.measured.trace_map",
+    "gms_comp.measured.trace_clock",
+    "gms_comp.measured.trace_units",
     "gms_comp.app.sweep",
 )
 _CAP = re.compile(r"((?:^#:.*\n)+)^((?:MAX|MIN)_[A-Z0-9_]+)\s*=", re.MULTILINE)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import warnings
 from pathlib import Path
 
@@ -41,7 +42,7 @@ def test_canonical_csv_round_trip(tmp_path: Path) -> None:
         source="mem",
         time_s=t,
         position_m=1e-3 * np.sin(t),
-        force_N=np.cos(t),
+        force_N=5.0 * np.cos(20.0 * t),
         velocity_m_s=1e-3 * np.cos(t),
     )
     p = tmp_path / "rt.csv"
@@ -54,9 +55,12 @@ def test_canonical_csv_round_trip(tmp_path: Path) -> None:
 
 
 def test_error_names_file_and_missing_column(tmp_path: Path) -> None:
-    p = _csv(tmp_path, "time_s,position_m\n0,0\n1,1\n")
-    with pytest.raises(TraceError, match=r"t\.csv: missing column 'force_N'"):
+    p = _csv(tmp_path, "time_s,position_m,F [N]\n0,0,0\n1,1,1\n")
+    with pytest.raises(TraceError, match=r"t\.csv: missing column 'force_N'") as err:
         load_trace(p)
+    # the header found, and the --map that names a column of it
+    assert "(the file's columns: time_s, position_m, F [N])" in str(err.value)
+    assert """--map 'force_N="F [N]"'""" in str(err.value)
 
 
 def test_non_numeric_cell_names_row_and_column(tmp_path: Path) -> None:
@@ -74,7 +78,11 @@ def test_nan_inf_refused(tmp_path: Path, cell: str) -> None:
 
 def test_time_not_increasing(tmp_path: Path) -> None:
     lines = _good_rows(200).split("\n")
-    lines[50] = lines[49]  # a repeated time stamp at file row 52
+    lines[50] = lines[49]  # a repeated row: its time stamp at file row 52
+    text = "time_s,position_m,force_N\n" + "\n".join(lines) + "\n"
+    with pytest.raises(TraceError, match=r"row 52, column time_s: time stamp .* repeats"):
+        load_trace(_csv(tmp_path, text))
+    lines[50] = "0.0001,0,0"  # back in time at file row 52
     text = "time_s,position_m,force_N\n" + "\n".join(lines) + "\n"
     with pytest.raises(TraceError, match=r"row 52, column time_s: time does not increase"):
         load_trace(_csv(tmp_path, text))
@@ -115,7 +123,7 @@ def test_millimetre_positions_are_refused_with_the_mapping_to_use(tmp_path: Path
     t = np.arange(n) * 1e-3
     rows = "\n".join(f"{a},{300 * np.sin(10 * a)},{1.0}" for a in t)  # a 300 "m" stroke
     p = _csv(tmp_path, "time_s,position_m,force_N\n" + rows + "\n")
-    with pytest.raises(TraceError, match=r"column position_m: spans .* looks like mm") as err:
+    with pytest.raises(TraceError, match=r"column position_m: its stroke .* looks like mm") as err:
         load_trace(p)
     assert "--map position_m=position_m*0.001" in str(err.value)
     # The suggested mapping is accepted and scales to a plausible stroke.
@@ -130,19 +138,19 @@ def _ids() -> dict[str, str]:
 def test_micrometre_positions_through_a_mapping_name_the_source(tmp_path: Path) -> None:
     n = 200
     t = np.arange(n) * 1e-3
-    rows = "\n".join(f"{a},{2e6 * np.sin(10 * a)},{1.0}" for a in t)  # 2 m in um
+    rows = "\n".join(f"{a},{2e5 * np.sin(10 * a)},{1.0}" for a in t)  # 0.2 m in um
     p = _csv(tmp_path, "time_s,pos_um,force_N\n" + rows + "\n")
     mapping = {"time_s": "time_s", "position_m": "pos_um", "force_N": "force_N"}
-    with pytest.raises(TraceError, match=r"looks like um .* --map position_m=pos_um\*1e-06"):
+    with pytest.raises(TraceError, match=r"looks like um \(--map position_m=pos_um\*1e-06\)"):
         load_trace(p, mapping)
 
 
 def test_velocity_in_mm_per_s_and_constant_velocity_are_refused(tmp_path: Path) -> None:
     n = 200
     t = np.arange(n) * 1e-3
-    x = 1e-3 * np.sin(2 * np.pi * t)
+    x = 5e-3 * np.sin(2 * np.pi * 2 * t)
     for v, message in (
-        (1e3 * 2 * np.pi * np.cos(2 * np.pi * t) * 10, r"looks like mm/s .*velocity_m_s\*0.001"),
+        (1e3 * 5e-3 * 4 * np.pi * np.cos(4 * np.pi * t), r"looks like mm/s .*velocity_m_s\*0.001"),
         (np.full(n, 0.25), r"velocity_m_s: is constant \(0.25 m/s\) while the position moves"),
     ):
         rows = "\n".join(f"{a},{b},1.0,{c}" for a, b, c in zip(t, x, v, strict=True))
@@ -221,18 +229,41 @@ def test_mapping_with_scale(tmp_path: Path) -> None:
     [
         ("position_m", "must read COLUMN=EXPRESSION"),
         ("speed=v", "unknown column 'speed'"),
-        ("force_N=__import__('os')", "neither a column name nor a number"),
-        ("force_N=a*1e999", "not finite"),
+        ("force_N=a\x00", "printable characters"),
+        ("force_N=" + "a*" * 200 + "a", "printable characters"),
+        ("force_N=a,force_N=b", "column force_N is mapped twice"),
     ],
 )
 def test_bad_mapping_entries(entry: str, message: str) -> None:
     with pytest.raises(TraceError, match=message):
-        parse_mapping([entry], "cli")
+        parse_mapping(entry.split(","), "cli")
+
+
+@pytest.mark.parametrize(
+    ("expr", "message"),
+    [
+        ("__import__('os')", "'__import__' is neither a column name nor a number"),
+        ("c*1e999", "number 1e999 is not finite"),
+        ("c/0", "division by zero"),
+        ("(c", "a parenthesis is not closed"),
+        ("c c", "unexpected 'c' after a complete term"),
+        ("2*3", "names no column"),
+    ],
+)
+def test_bad_mapping_expressions_are_refused_when_the_file_is_read(
+    tmp_path: Path, expr: str, message: str
+) -> None:
+    p = _csv(tmp_path, "a,b,c\n" + _good_rows() + "\n")
+    mapping = {"time_s": "a", "position_m": "b", "force_N": expr}
+    with pytest.raises(TraceError, match=f"t\\.csv: --map force_N=.*{re.escape(message)}"):
+        load_trace(p, mapping)
 
 
 def test_mapping_to_absent_source(tmp_path: Path) -> None:
     p = _csv(tmp_path, "a,b,c\n" + _good_rows() + "\n")
-    with pytest.raises(TraceError, match=r"column force_N: source 'd' not found"):
+    with pytest.raises(
+        TraceError, match=r"--map force_N=d: 'd' is neither a column name nor a number"
+    ):
         load_trace(p, {"time_s": "a", "position_m": "b", "force_N": "d"})
 
 
@@ -240,11 +271,11 @@ def test_mat_needs_mapping_unless_emps(tmp_path: Path) -> None:
     n = 200
     t = np.arange(n) * 1e-3
     p = tmp_path / "m.mat"
-    scipy.io.savemat(p, {"tt": t[:, None], "x": np.sin(t)[:, None], "f": np.cos(t)[:, None]})
+    scipy.io.savemat(p, {"tt": t[:, None], "x": np.sin(t)[:, None], "f": np.cos(9 * t)[:, None]})
     with pytest.raises(TraceError, match=r"not an EMPS record \(missing variables"):
         load_trace(p)
     trace = load_trace(p, {"time_s": "tt", "position_m": "x", "force_N": "f"})
-    np.testing.assert_allclose(trace.force_N, np.cos(t))
+    np.testing.assert_allclose(trace.force_N, np.cos(9 * t))
 
 
 def test_emps_shaped_mat_is_recognised(tmp_path: Path) -> None:
@@ -287,6 +318,7 @@ def test_emps_file_values() -> None:
     st.lists(st.floats(min_value=-1e3, max_value=1e3, allow_nan=False), min_size=100, max_size=140)
 )
 def test_csv_round_trip_any_force(tmp_path_factory: pytest.TempPathFactory, f: list[float]) -> None:
+    f = [*f[:-2], -1.0, 1.0]  # a force that varies as a guide's friction does
     n = len(f)
     trace = Trace(
         source="mem",
@@ -314,9 +346,8 @@ def test_csv_read_in_one_pass_as_cell_by_cell(
     """The one-pass numpy reading of plain files gives the values and row numbers of the
     cell-by-cell reader, and files it cannot read plainly go to that reader."""
     p = _csv(tmp_path, "time_s,position_m,force_N\n" + rows)
-    assert (trace_csv._plain_csv(p) is None) == ('"' in rows or "\n\n" in rows)
     fast = trace_csv.read_csv(p)
-    monkeypatch.setattr(trace_csv, "_plain_csv", lambda path: None)
+    monkeypatch.setattr(trace_csv, "_plain_csv", lambda *args: None)
     cells = trace_csv.read_csv(p)
     assert fast[1] == cells[1]
     assert fast[0].keys() == cells[0].keys()

@@ -16,11 +16,14 @@ from collections import defaultdict
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 from gms_comp.app.scaleout import JobResult, run_jobs
 from gms_comp.errors import TraceError
 from gms_comp.gms import GmsParams
+
+if TYPE_CHECKING:
+    from gms_comp.measured.trace_clock import Segment
 
 
 @dataclass(frozen=True)
@@ -32,6 +35,7 @@ class FleetJob:
     config: str | None = None
     mapping: tuple[tuple[str, str], ...] = ()
     report_dir: str | None = None  # this trace's own report folder (see report_names)
+    segment: int | str | None = None  # the piece between gaps in time to read (--segment)
     table: GmsParams | None = None  # a baseline GMS to calibrate (else the free NNLS GMS)
 
 
@@ -56,9 +60,10 @@ def report_names(traces: Sequence[str]) -> list[str]:
 def diagnose_one(job: FleetJob) -> dict[str, Any]:
     """Diagnose one trace and return its summary row (no per-sample series)."""
     from gms_comp.measured.diagnosis.run import diagnose, load_diagnosis_config
-    from gms_comp.measured.traces import ForceKind, load_trace
+    from gms_comp.measured.traces import ForceKind, input_json, load_trace
 
-    trace = load_trace(job.trace, dict(job.mapping) if job.mapping else None)
+    segment = cast("Segment | None", job.segment)
+    trace = load_trace(job.trace, dict(job.mapping) if job.mapping else None, segment=segment)
     kind = job.force_kind or trace.force_kind or "friction"
     if kind not in ("friction", "drive"):
         raise TraceError(f"{job.trace}: force kind must be friction or drive, got {kind!r}")
@@ -77,6 +82,7 @@ def diagnose_one(job: FleetJob) -> dict[str, Any]:
         "gain": doc["gain"],
         "baseline_source": doc["baseline"].get("source", "free_nnls"),
         "caveats": doc["caveats"],
+        "input": input_json(trace),
     }
     if job.report_dir is not None:
         from gms_comp.measured.diagnosis.report import write_report

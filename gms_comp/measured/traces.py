@@ -3,33 +3,38 @@
 A trace is one sampled record of an axis: time, position and a force that is either a
 friction force (a test stand's force sensor) or a drive force (force constant x current,
 inertia included). Files are untrusted input: every problem raises :class:`TraceError`
-with one line naming the file, the row or column and what is wrong. Sizes are checked
-before anything is allocated: a CSV file's bytes and rows, a MATLAB variable's declared
-shape (read with :func:`scipy.io.whosmat` before the variable is loaded). Unit slips that
-can be detected (a stroke of hundreds of metres in a ``_m`` column) are refused with a
-message that says what the name implies and how to map the column instead
-(``--map position_m=pos_mm*0.001``): a wrong unit would only give a wrong diagnosis.
+with one line naming the file, the row or column and what is wrong, before any analysis.
+Loading runs one chain of checks (docs/traces.md):
 
-A mapping names, for each canonical column, a product of source columns (or MATLAB
-variables) and numbers, e.g. ``{"force_N": "gtau*vir", "position_m": "pos_mm*0.001"}``.
-Nothing is evaluated: the expression is split on ``*`` and each factor is a name or a
-number.
+1. sizes before parsing: a CSV file's bytes and rows (:mod:`.trace_csv`), a MATLAB
+   variable's declared shape (read with :func:`scipy.io.whosmat` before it is loaded);
+2. the mapping: each canonical column as an expression over the file's columns
+   (:mod:`.trace_map`; ``{"force_N": "gtau*vir", "position_m": "\"pos (um)\"*1e-6"}``),
+   never evaluated by Python; a missing column names the header and the ``--map`` to give;
+3. finite values, with their row;
+4. the clock (:mod:`.trace_clock`): increasing stamps, a sample rate some axis log has,
+   gaps refused or a segment chosen, a non-uniform clock resampled and said so
+   (:attr:`Trace.clock`);
+5. units by physics (:mod:`.trace_units`): stroke, speed, acceleration, resolution and
+   force against what a ball-guided axis does, refused with the unit it looks like and
+   the ``--map`` that scales it.
 """
 
 from __future__ import annotations
 
 import math
-import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import scipy.io
 
 from gms_comp.atomic import atomic_path
 from gms_comp.errors import TraceError
+from gms_comp.measured import trace_map, trace_units
+from gms_comp.measured.trace_clock import Clock, Segment, read_clock
 from gms_comp.measured.trace_csv import read_csv
 from gms_comp.validation import MAX_TRACE_SAMPLES
 
@@ -48,25 +53,14 @@ EMPS_MAPPING: Mapping[str, str] = {
     "reference_position_m": "qg",
 }
 
-# Plausibility limits behind the unit-slip refusals: no linear axis this tool serves has
-# a stroke above a few metres or a speed above tens of m/s.
-#: Stroke of a trace's position_m column (more looks like mm or um), m.
-MAX_PLAUSIBLE_STROKE_M = 5.0
-#: Speed in a trace's velocity_m_s column (more looks like mm/s), m/s.
-MAX_PLAUSIBLE_SPEED_M_S = 20.0
-# A trace whose position never moves more than this has no motion to analyse.
-MIN_MOTION_M = 1e-9
-
-_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-
-
-class TraceUnitWarning(UserWarning):
-    """Kept for callers that filter it; unit slips are now refused with a TraceError."""
-
 
 @dataclass(frozen=True)
 class Trace:
-    """One measured record, SI units; optional columns are ``None`` when absent."""
+    """One measured record, SI units; optional columns are ``None`` when absent.
+
+    A loaded trace is on a uniform clock (:attr:`clock` says how its stamps were read);
+    one made in memory is taken as it is.
+    """
 
     source: str
     time_s: np.ndarray
@@ -77,13 +71,14 @@ class Trace:
     current_A: np.ndarray | None = None
     normal_load_N: np.ndarray | None = None
     force_kind: ForceKind | None = None  # known from the format (EMPS: drive), else None
+    clock: Clock | None = None  # how the file's time stamps were read (None: in memory)
 
     def __len__(self) -> int:
         return len(self.time_s)
 
     @property
     def sample_time_s(self) -> float:
-        """Mean sampling interval (time stamps may jitter by a few ns)."""
+        """Mean sampling interval (the clock is uniform; stamps may jitter by a few ns)."""
         return float((self.time_s[-1] - self.time_s[0]) / (len(self.time_s) - 1))
 
     def slice(self, start: int, stop: int) -> Trace:
@@ -102,23 +97,36 @@ class Trace:
             current_A=cut(self.current_A),
             normal_load_N=cut(self.normal_load_N),
             force_kind=self.force_kind,
+            clock=self.clock,
         )
 
 
 def parse_mapping(items: Sequence[str], where: str) -> dict[str, str]:
-    """Parse ``["position_m=qm", "force_N=gtau*vir"]`` into a mapping; refuse bad entries."""
+    """Parse ``["position_m=qm", "force_N=gtau*vir"]`` into a mapping; refuse bad entries.
+
+    The expressions are parsed when the file is read (a header name may hold any
+    character, so only the file's header tells a name from an operator); here each entry
+    is checked for its form, its canonical column and its length.
+    """
     mapping: dict[str, str] = {}
     for item in items:
         name, sep, expr = item.partition("=")
         name, expr = name.strip(), expr.strip()
         if not sep or not expr:
-            raise TraceError(f"{where}: mapping entry {item!r} must read COLUMN=EXPRESSION")
+            raise TraceError(where, "", f"mapping entry {item!r} must read COLUMN=EXPRESSION")
         if name not in CANONICAL_COLUMNS:
             raise TraceError(
-                f"{where}: mapping entry {item!r}: unknown column {name!r} "
-                f"(known: {', '.join(CANONICAL_COLUMNS)})"
-            )
-        _factors(expr, where)
+                where, "",
+                f"mapping entry {item!r}: unknown column {name!r} "
+                f"(known: {', '.join(CANONICAL_COLUMNS)})",
+            )  # fmt: skip
+        if name in mapping:
+            raise TraceError(where, "", f"column {name} is mapped twice")
+        if len(expr) > trace_map.MAX_MAP_CHARS or not expr.isprintable():
+            raise TraceError(
+                where, "", f"mapping entry {item[:40]!r}...: at most "
+                f"{trace_map.MAX_MAP_CHARS} printable characters",
+            )  # fmt: skip
         mapping[name] = expr
     return mapping
 
@@ -128,6 +136,7 @@ def load_trace(
     mapping: Mapping[str, str] | None = None,
     *,
     min_samples: int = 100,
+    segment: Segment | None = None,
 ) -> Trace:
     """Read a trace from a ``.csv`` or ``.mat`` file.
 
@@ -137,9 +146,13 @@ def load_trace(
         The file. A CSV without ``mapping`` must hold the canonical columns; a .mat file
         without ``mapping`` must be an EMPS record (variables t, qm, vir, gtau).
     mapping
-        Canonical column -> expression over the file's columns/variables (see module doc).
+        Canonical column -> expression over the file's columns/variables
+        (:mod:`.trace_map`); columns not named keep the file's column of their name.
     min_samples
         Fewer samples than this are refused (the analysis needs them).
+    segment
+        With gaps in time, which piece between them to read (1-based, or ``"longest"``);
+        None refuses a trace with gaps.
 
     Raises
     ------
@@ -148,19 +161,19 @@ def load_trace(
     """
     p = Path(path)
     if not p.is_file():
-        raise TraceError(f"{p}: file not found")
+        raise TraceError(str(p), "", "file not found" if not p.exists() else "not a file")
     suffix = p.suffix.lower()
+    kind: ForceKind | None = None
     if suffix == ".csv":
         columns, lines = read_csv(p)
-        mapping = mapping or _identity(columns)
-        trace = _build(p, _evaluate(p, columns, mapping), None)
+        mapping = {**_identity(columns), **(mapping or {})}
+        parsed = _parsed(p, mapping, columns)
 
         def where(index: int) -> str:
             return f"row {lines[index]}"
 
     elif suffix == ".mat":
         declared = _declared_mat_shapes(p)
-        kind: ForceKind | None = None
         if mapping is None:
             if not declared.keys() >= EMPS_VARIABLES:
                 missing = ", ".join(sorted(EMPS_VARIABLES - declared.keys()))
@@ -170,16 +183,42 @@ def load_trace(
                 )
             mapping = {k: v for k, v in EMPS_MAPPING.items() if v in declared or "*" in v}
             kind = "drive"
-        needed = sorted(
-            {f for expr in mapping.values() for f in _factors(expr, str(p)) if isinstance(f, str)}
-        )
-        variables = _read_mat(p, [n for n in needed if n in declared], declared)
-        trace = _build(p, _evaluate(p, variables, mapping), kind)
+        parsed = _parsed(p, mapping, declared)
+        needed = sorted(set().union(*(trace_map.sources(n) for n in parsed.values())))
+        columns = _read_mat(p, needed, declared)
         where = _mat_sample
     else:
         raise TraceError(f"{p}: unknown trace format {p.suffix!r} (expected .csv or .mat)")
-    _validate(trace, min_samples, where, mapping)
+    values = _evaluate(p, columns, parsed)
+    _check_samples(str(p), len(values["time_s"]), min_samples)
+    _check_finite(str(p), values, where)
+    reading = read_clock(values["time_s"], str(p), where, mapping["time_s"], segment)
+    cut = {name: v[reading.start : reading.stop] for name, v in values.items()}
+    if reading.grid_s is not None:
+        cut = {name: np.interp(reading.grid_s, cut["time_s"], v) for name, v in cut.items()}
+        cut["time_s"] = reading.grid_s
+    trace = Trace(source=str(p), force_kind=kind, clock=reading.clock, **cut)
+    _check_samples(str(p), len(trace), min_samples)
+    _check_units(trace, mapping)
     return trace
+
+
+def input_json(trace: Trace) -> dict[str, Any]:
+    """How a trace was read, for the diagnosis JSON's ``input``: its samples and clock
+    (``resampled_from_Hz``, ``segment``), the motion's figures that its units are checked
+    by, and, when not used as recorded, a ``note``."""
+    dt = trace.sample_time_s
+    doc: dict[str, Any] = {"samples": len(trace), "sample_rate_Hz": 1.0 / dt}
+    if trace.clock is not None:
+        doc.update(trace.clock.to_json())
+    doc.update(
+        stroke_m=float(np.ptp(trace.position_m)),
+        top_speed_m_s=trace_units.peak_speed(trace.position_m, dt),
+        top_acceleration_m_s2=trace_units.peak_acceleration(trace.position_m, dt),
+    )
+    if trace.clock is not None and (note := trace.clock.describe()):
+        doc["note"] = note
+    return doc
 
 
 def write_trace(path: str | Path, trace: Trace) -> None:
@@ -249,64 +288,53 @@ def _read_mat(
             continue
         if value.dtype.kind in "biuf":
             out[name] = np.asarray(value, dtype=float).ravel()
+    for name in names:
+        if name not in out:
+            raise TraceError(str(path), f"variable {name}", "is not numeric")
     return out
 
 
-def _identity(columns: Mapping[str, np.ndarray]) -> dict[str, str]:
-    return {name: name for name in CANONICAL_COLUMNS if name in columns}
+def _identity(columns: Collection[str]) -> dict[str, str]:
+    return {name: trace_map.quoted(name) for name in CANONICAL_COLUMNS if name in columns}
 
 
-def _factors(expr: str, where: str) -> list[str | float]:
-    """Split ``a*b*0.001`` into names and numbers; anything else is refused."""
-    out: list[str | float] = []
-    for part in expr.split("*"):
-        token = part.strip()
-        if _NAME.fullmatch(token):
-            out.append(token)
-            continue
-        try:
-            number = float(token)
-        except ValueError:
-            raise TraceError(
-                f"{where}: mapping {expr!r}: {token!r} is neither a column name nor a number"
-            ) from None
-        if not math.isfinite(number):
-            raise TraceError(f"{where}: mapping {expr!r}: factor {token!r} is not finite")
-        out.append(number)
-    return out
+def _parsed(
+    path: Path, mapping: Mapping[str, str], names: Collection[str]
+) -> dict[str, trace_map.Node]:
+    """Each mapped column's expression, parsed against the file's column names; a
+    required column neither in the file nor mapped is refused with the header."""
+    for name in REQUIRED_COLUMNS:
+        if name not in mapping:
+            raise TraceError(str(path), "", _missing(name, names, mapping))
+    return {
+        name: trace_map.parse(expr, names, f"{path}: --map {name}={expr}")
+        for name, expr in mapping.items()
+    }
+
+
+def _missing(name: str, names: Collection[str], mapping: Mapping[str, str]) -> str:
+    header = ", ".join(names) or "none"
+    used = set(mapping.values())
+    spare = [n for n in names if trace_map.quoted(n) not in used]
+    example = f", e.g. --map '{name}={trace_map.quoted(spare[0])}'" if spare else ""
+    return (
+        f"missing column {name!r} (the file's columns: {header}); name the column that holds "
+        f"it with --map {name}=EXPRESSION{example}"
+    )
 
 
 def _evaluate(
-    path: Path,
-    columns: Mapping[str, np.ndarray],
-    mapping: Mapping[str, str],
+    path: Path, columns: Mapping[str, np.ndarray], parsed: Mapping[str, trace_map.Node]
 ) -> dict[str, np.ndarray]:
-    """Each canonical column as the product of its mapped factors."""
-    for name in REQUIRED_COLUMNS:
-        if name not in mapping:
-            have = ", ".join(columns) or "none"
-            raise TraceError(f"{path}: missing column {name!r} (columns: {have})")
+    """Each canonical column from its expression, as a 1-d float array."""
     out: dict[str, np.ndarray] = {}
-    for name, expr in mapping.items():
-        value: np.ndarray | float = 1.0
-        for factor in _factors(expr, str(path)):
-            if isinstance(factor, float):
-                value = value * factor
-                continue
-            if factor not in columns:
-                raise TraceError(f"{path}: column {name}: source {factor!r} not found in file")
-            data = columns[factor]
-            # A 1-element MATLAB variable is a scalar (gtau); others are columns.
-            value = value * (data[0] if data.size == 1 else data)
-        out[name] = np.broadcast_to(np.asarray(value, dtype=float), np.shape(value)).copy()
+    for name, node in parsed.items():
+        value = trace_map.evaluate(node, columns)
+        out[name] = np.array(value, dtype=float, ndmin=1)
     lengths = {n: a.size for n, a in out.items()}
     if len(set(lengths.values())) != 1 or any(a.ndim != 1 for a in out.values()):
         raise TraceError(f"{path}: columns differ in length ({lengths})")
     return out
-
-
-def _build(path: Path, cols: Mapping[str, np.ndarray], kind: ForceKind | None) -> Trace:
-    return Trace(source=str(path), force_kind=kind, **cols)
 
 
 # --- validation --------------------------------------------------------------------------
@@ -316,64 +344,29 @@ def _mat_sample(index: int) -> str:
     return f"sample {index + 1}"
 
 
-def _validate(
-    trace: Trace,
-    min_samples: int,
-    where: Callable[[int], str],
-    mapping: Mapping[str, str],
-) -> None:
-    src = trace.source
-    n = len(trace)
+def _check_samples(src: str, n: int, min_samples: int) -> None:
     if n < min_samples:
         raise TraceError(f"{src}: {n} samples, the analysis needs at least {min_samples}")
-    for name in CANONICAL_COLUMNS:
-        values = getattr(trace, name)
-        if values is None:
-            continue
-        bad = np.flatnonzero(~np.isfinite(values))
+
+
+def _check_finite(src: str, values: Mapping[str, np.ndarray], where: Callable[[int], str]) -> None:
+    for name, column in values.items():
+        bad = np.flatnonzero(~np.isfinite(column))
         if bad.size:
-            raise TraceError(f"{src}: {where(bad[0])}, column {name}: value is not finite")
-    steps = np.diff(trace.time_s)
-    bad = np.flatnonzero(steps <= 0)
-    if bad.size:
-        i = bad[0]
-        raise TraceError(
-            f"{src}: {where(i + 1)}, column time_s: time does not increase "
-            f"({trace.time_s[i]:.9g} -> {trace.time_s[i + 1]:.9g} s)"
-        )
-    stroke = float(np.ptp(trace.position_m))
-    if stroke < MIN_MOTION_M:
-        raise TraceError(f"{src}: column position_m: no motion (stroke {stroke:.3g} m)")
-    if stroke > MAX_PLAUSIBLE_STROKE_M:
-        micro = stroke > 1e3 * MAX_PLAUSIBLE_STROKE_M
-        raise TraceError(
-            src,
-            "column position_m",
-            f"spans {stroke:.4g} m, more than the {MAX_PLAUSIBLE_STROKE_M:g} m stroke of any "
-            f"axis served: it looks like {'um' if micro else 'mm'} although the name says "
-            "metres; map the column with its scale, e.g. "
-            f"--map position_m={_scaled(mapping, 'position_m', 1e-6 if micro else 1e-3)}",
-        )
+            raise TraceError(f"{src}: {where(int(bad[0]))}, column {name}: value is not finite")
+
+
+def _check_units(trace: Trace, mapping: Mapping[str, str]) -> None:
+    src = trace.source
+    trace_units.check_position(trace.position_m, trace.sample_time_s, src, mapping["position_m"])
     if trace.velocity_m_s is not None:
-        speed = float(np.max(np.abs(trace.velocity_m_s)))
-        if speed > MAX_PLAUSIBLE_SPEED_M_S:
-            raise TraceError(
-                src,
-                "column velocity_m_s",
-                f"reaches {speed:.4g} m/s, more than the {MAX_PLAUSIBLE_SPEED_M_S:g} m/s of "
-                "any axis served: it looks like mm/s although the name says m/s; map the "
-                f"column with its scale, e.g. "
-                f"--map velocity_m_s={_scaled(mapping, 'velocity_m_s', 1e-3)}",
-            )
+        trace_units.check_velocity(trace.velocity_m_s, src, mapping["velocity_m_s"])
         if float(np.ptp(trace.velocity_m_s)) == 0.0:
             raise TraceError(
                 src,
                 "column velocity_m_s",
                 f"is constant ({trace.velocity_m_s[0]:g} m/s) while the position moves "
-                f"{stroke:.3g} m: not a velocity signal; map the right column or leave it out",
+                f"{float(np.ptp(trace.position_m)):.3g} m: not a velocity signal; map the "
+                "right column or leave it out",
             )
-
-
-def _scaled(mapping: Mapping[str, str], column: str, factor: float) -> str:
-    """The mapping expression of ``column`` times ``factor``, for a suggestion."""
-    return f"{mapping.get(column, column)}*{factor:g}"
+    trace_units.check_force(trace.force_N, src, mapping["force_N"])

@@ -27,7 +27,8 @@ from gms_comp.measured.diagnosis import emps
 from gms_comp.measured.diagnosis.phases import phase_label
 from gms_comp.measured.diagnosis.result import parameter_text
 from gms_comp.measured.diagnosis.run import Diagnosis, diagnose, load_diagnosis_config
-from gms_comp.measured.traces import Trace, load_trace, parse_mapping
+from gms_comp.measured.trace_clock import segment_choice
+from gms_comp.measured.traces import Trace, input_json, load_trace, parse_mapping
 from gms_comp.physics.config import load_ball_config
 from gms_comp.runtime.effects import effect_to_dict
 from gms_comp.tables.reduction import reduce_to_gms
@@ -38,7 +39,20 @@ COLUMNS_HELP = (
     "A canonical CSV has a header row and one sample per row, SI units: time_s (s, strictly "
     "increasing), position_m (m) and force_N (N) are required; velocity_m_s, "
     "reference_position_m, current_A and normal_load_N are optional. EMPS .mat files "
-    "(variables t, qm, qg, vir, gtau) are read directly; any other .csv/.mat with --map."
+    "(variables t, qm, qg, vir, gtau) are read directly; any other .csv/.mat with --map. "
+    "Time stamps: jitter within 10 % of the step, or stamps within a quarter step of one "
+    "uniform clock, are read on that clock; missing samples, a change of rate or stamps "
+    "further off are resampled onto a uniform clock (the "
+    "summary and the JSON's input.resampled_from_Hz say so); a gap of more than 4 steps "
+    "is refused unless --segment picks a piece; a repeated stamp is refused. Units are "
+    "checked by physics (sample rate, stroke, speed, acceleration, force): a trace in ms, "
+    "mm or kN is refused with the --map that scales it. See docs/traces.md."
+)
+MAP_HELP = (
+    "column mapping COLUMN=EXPRESSION (repeatable): the expression combines the file's "
+    "columns and numbers with + - * / and parentheses, e.g. position_m=pos_mm*0.001 or "
+    "force_N=gtau*vir; header names are written as they are (time_s=t[ms]*0.001) or in "
+    "double quotes ('position_m=\"pos (um)\"*1e-6'); nothing is evaluated by Python"
 )
 
 
@@ -78,12 +92,12 @@ def register(subparsers: Any) -> None:
         help="what force_N is (default: drive for EMPS files, else friction)",
     )
     p.add_argument("--validate", metavar="TRACE2", help="held-out trace (else blocks of TRACE)")
+    p.add_argument("--map", action="append", default=[], metavar="COLUMN=EXPR", help=MAP_HELP)
     p.add_argument(
-        "--map",
-        action="append",
-        default=[],
-        metavar="COLUMN=EXPR",
-        help="column mapping, e.g. position_m=pos_mm*0.001 (repeatable)",
+        "--segment",
+        type=segment_choice,
+        metavar="N|longest",
+        help="with gaps in time, diagnose the N-th piece between them (or the longest)",
     )
     p.add_argument(
         "--json", action="store_true", help="print the result as JSON on stdout (only that)"
@@ -127,14 +141,17 @@ def run(args: argparse.Namespace) -> int:
     if len(args.traces) > 1 or args.scheduler:
         return _run_fleet(args, mapping)
     args.trace = args.traces[0]
-    trace = load_trace(args.trace, mapping)
-    validation = load_trace(args.validate, mapping) if args.validate else None
+    trace = load_trace(args.trace, mapping, segment=args.segment)
+    validation = load_trace(args.validate, mapping, segment=args.segment) if args.validate else None
     kind = args.force_kind or trace.force_kind or "friction"
     config = load_diagnosis_config(args.config)
     with _progress(True) as say:
         result = diagnose(trace, kind, validation, config, _baseline_table(args), say)
     doc = result.to_json()
     doc["trace"] = str(args.trace)
+    doc["input"] = input_json(trace)
+    if validation is not None:
+        doc["validation_input"] = input_json(validation)
     if trace.force_kind == "drive" and kind == "drive":
         doc.update(_benchmark_errors(trace, validation, result))
     if args.closed_loop is not None:
@@ -181,6 +198,9 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
         f"held-out RMS {doc['baseline_rms_N']:.4g} N "
         f"(noise {doc['noise_rms_N']:.3g} N)",
     ]
+    for key, what in (("input", "input"), ("validation_input", "validation input")):
+        if key in doc:
+            lines.append(f"{what}: {_input_text(doc[key])}")
     if b.get("position") == "encoder counts read as motion":
         lines.append(
             f"position: the encoder's counts read as motion (a count moves the model "
@@ -271,6 +291,7 @@ def _run_fleet(args: argparse.Namespace, mapping: Mapping[str, str] | None) -> i
             force_kind=args.force_kind,
             config=args.config,
             mapping=tuple(sorted(mapping.items())) if mapping else (),
+            segment=args.segment,
             report_dir=str(Path(args.report) / name) if args.report else None,
             table=table,
         )
@@ -336,6 +357,16 @@ def _benchmark_errors(trace: Trace, validation: Trace | None, result: Diagnosis)
             ),
         }
     return out
+
+
+def _input_text(doc: Mapping[str, Any]) -> str:
+    """The trace's clock and motion figures (a unit slip shows in them), and how its
+    time stamps were read when not as recorded."""
+    text = (
+        f"{doc['sample_rate_Hz']:.6g} Hz, stroke {doc['stroke_m']:.4g} m, top speed "
+        f"{doc['top_speed_m_s']:.4g} m/s, top acceleration {doc['top_acceleration_m_s2']:.4g} m/s^2"
+    )
+    return f"{text}; {doc['note']}" if doc.get("note") else text
 
 
 def _every(baseline: Mapping[str, Any]) -> str:
