@@ -19,9 +19,11 @@ The axis is left stopped and disabled after each run, also on Ctrl-C.
 from __future__ import annotations
 
 import json
+import tempfile
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any, cast
 
 import numpy as np
@@ -36,10 +38,11 @@ from gms_comp.app.live.recording import (
     drive_and_record,
     profile_targets,
     to_trace,
+    write_recording,
 )
 from gms_comp.arrays import FloatArray
 from gms_comp.measured.diagnosis.run import Diagnosis, DiagnosisConfig, diagnose
-from gms_comp.measured.traces import Trace
+from gms_comp.measured.traces import Trace, input_json, load_trace
 from gms_comp.runtime.observer import ForceModel, FrictionObserver
 from gms_comp.tables.reduction import reduce_to_gms
 from gms_comp.tables.table import GmsTable, table_to_dict
@@ -185,6 +188,7 @@ class Commissioning:
     """Everything a commissioning run found."""
 
     recorded: RecordedTrace
+    trace: Trace  # as the diagnosis read it back
     diagnosis: Diagnosis
     extended: GmsTable
     verifications: list[Verification]
@@ -194,6 +198,7 @@ class Commissioning:
         """The ``--json`` document: diagnosis, verification per feedforward, CAN figures."""
         return {
             "recording": self.recorded.sidecar,
+            "input": input_json(self.trace),
             "diagnosis": self.diagnosis.to_json(),
             "coulomb_viscous": {
                 "coulomb_N": self.coulomb_viscous.coulomb_N,
@@ -229,7 +234,10 @@ def commission(
     recording, _ = drive_and_record(cfg, targets, stop_request=stop_request, drive=drive)
     recorded = to_trace(recording, cfg, s.plant, "commission: identification profile")
     progress(f"diagnosing {recorded.sidecar['samples']} samples")
-    trace = present_samples(recorded.trace)
+    with tempfile.TemporaryDirectory() as folder:  # read back as diagnose reads a recording
+        path = Path(folder) / "identification.csv"
+        write_recording(recorded, path)
+        trace = load_trace(path, segment="longest")
     physics = physics_table(s)
     # the physics table is the baseline the diagnosis calibrates and extends; the extended
     # table is the physics GMS with the effects found: a drive's current sampled once a
@@ -254,19 +262,4 @@ def commission(
     if in_drive and not (stop_request is not None and stop_request.is_set()):
         progress("reversal test with the extended table in the drive")
         runs.append(verify(cfg, s, "extended_in_drive", extended, stop_request, drive, True))
-    return Commissioning(recorded, result, extended, runs, cv)
-
-
-def present_samples(trace: Trace) -> Trace:
-    """The trace without its missing samples (rows the bus lost)."""
-    keep = np.isfinite(trace.position_m) & np.isfinite(trace.force_N)
-    if keep.all():
-        return trace
-    idx = np.flatnonzero(keep)
-
-    def cut(a: FloatArray | None) -> FloatArray | None:
-        return None if a is None else a[idx]
-
-    return Trace(trace.source, trace.time_s[idx], trace.position_m[idx], trace.force_N[idx],
-                 cut(trace.velocity_m_s), cut(trace.reference_position_m), cut(trace.current_A),
-                 None, trace.force_kind)  # fmt: skip
+    return Commissioning(recorded, trace, result, extended, runs, cv)

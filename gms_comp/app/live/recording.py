@@ -17,7 +17,6 @@ is not the axis's within the loop's small, fast following error.
 
 from __future__ import annotations
 
-import io
 import json
 import threading
 import time
@@ -41,7 +40,7 @@ from firmware_bridge.settings import CanConfig
 from gms_comp.arrays import FloatArray
 from gms_comp.atomic import write_text
 from gms_comp.errors import BusError
-from gms_comp.measured.traces import Trace
+from gms_comp.measured.traces import Trace, write_trace
 from sim.plant import PlantConfig
 from sim.tracegen import identification_profile
 
@@ -206,22 +205,31 @@ def to_trace(
 
 
 def write_recording(recorded: RecordedTrace, out: Path) -> list[Path]:
-    """The trace CSV (NaN where a sample is missing) and its JSON sidecar beside it."""
-    tr = recorded.trace
-    columns: dict[str, FloatArray] = {"time_s": tr.time_s, "position_m": tr.position_m,
-                                      "force_N": tr.force_N}  # fmt: skip
-    for name in ("velocity_m_s", "reference_position_m", "current_A"):
-        values = getattr(tr, name)
-        if values is not None:
-            columns[name] = values
-    buf = io.StringIO()
-    np.savetxt(buf, np.column_stack(list(columns.values())), delimiter=",", comments="",
-               fmt="%.12g", header=",".join(columns))  # fmt: skip
+    """The trace CSV and its JSON sidecar beside it (``OUT.csv.json``). A missing sample's
+    row is left out, so the reader sees it (and says how it reads around it, or refuses a
+    gap): nothing is interpolated here."""
+    write_trace(out, present_samples(recorded.trace))
     sidecar = out.with_suffix(out.suffix + ".json")
-    return [
-        write_text(out, buf.getvalue()),
-        write_text(sidecar, json.dumps(recorded.sidecar, indent=2) + "\n"),
-    ]
+    return [out, write_text(sidecar, json.dumps(recorded.sidecar, indent=2) + "\n")]
+
+
+def present_samples(trace: Trace) -> Trace:
+    """The trace without its missing samples (rows the bus lost)."""
+    keep = np.isfinite(trace.position_m) & np.isfinite(trace.force_N)
+    for name in ("velocity_m_s", "reference_position_m", "current_A"):
+        column = getattr(trace, name)
+        if column is not None:
+            keep &= np.isfinite(column)
+    if keep.all():
+        return trace
+    idx = np.flatnonzero(keep)
+
+    def cut(a: FloatArray | None) -> FloatArray | None:
+        return None if a is None else a[idx]
+
+    return Trace(trace.source, trace.time_s[idx], trace.position_m[idx], trace.force_N[idx],
+                 cut(trace.velocity_m_s), cut(trace.reference_position_m), cut(trace.current_A),
+                 None, trace.force_kind)  # fmt: skip
 
 
 def _nmt_start(cfg: CanConfig) -> can.Message:
