@@ -21,6 +21,7 @@ import json
 import math
 import os
 import re
+import sys
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -51,8 +52,43 @@ MAX_FAMILY_LOADS = 64
 MAX_SWEEP_POINTS = 10_000
 #: Worker processes of a local Dask cluster.
 MAX_WORKERS = 256
+#: Random seeds (config keys and ``--seed``): 0 to 2**32 - 1, what every numpy generator
+#: takes (a negative seed is refused, not passed on to fail inside the run).
+MAX_SEED = 2**32 - 1
 
 ErrorType = Callable[[str, str, str], InputError]
+
+#: Characters of a bad value quoted in a refusal (a longer one is cut, its length said).
+MAX_SHOWN_CHARS = 60
+
+
+def shown(value: Any) -> str:
+    """``repr(value)`` for a one-line refusal, cut to :data:`MAX_SHOWN_CHARS` (a
+    400-digit integer or a 1 MB string is named, not printed)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 200:
+        return f"an integer of {len(str(abs(value)))} digits"
+    text = repr(value)
+    if len(text) > MAX_SHOWN_CHARS:
+        return f"{text[: MAX_SHOWN_CHARS - 3]}... ({len(text)} characters)"
+    return text
+
+
+def is_number(value: Any) -> bool:
+    """Whether ``value`` is an int or a float (a boolean is not a number)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def finite_float(value: Any) -> float | None:
+    """``value`` as a finite float, or None: not a number, NaN, infinite, or an integer
+    beyond the float range (checked before converting: ``float(10**400)`` overflows)."""
+    if not is_number(value):
+        return None
+    if isinstance(value, int):
+        return float(value) if abs(value) <= _FLOAT_MAX_INT else None
+    return float(value) if math.isfinite(value) else None
+
+
+_FLOAT_MAX_INT = int(sys.float_info.max)
 
 
 def read_text(
@@ -178,6 +214,60 @@ def check_count(
     """Refuse ``count`` items of ``what`` when it exceeds ``cap`` (before allocating them)."""
     if count > cap:
         raise error(source, field, f"{count} {what}, more than the {cap} allowed")
+
+
+class JsonReader:
+    """Field accessors for a parsed JSON document, each refusal one line naming the source
+    and the field's dotted path (``velocity_level.slip_level``, ``limit_N[3]``).
+
+    Numbers are checked without converting first (a 400-digit integer is refused, not
+    overflowed), lists are measured before their entries are read.
+    """
+
+    def __init__(self, source: str, error: ErrorType = InputError) -> None:
+        self.source = source
+        self._error = error
+
+    def error(self, key: str, reason: str) -> InputError:
+        """The refusal of field ``key``."""
+        return self._error(self.source, key, reason)
+
+    def get(self, obj: Any, key: str) -> Any:
+        """``obj[last part of key]``; a missing key is reported with its full name."""
+        name = key.rsplit(".", 1)[-1]
+        if not isinstance(obj, dict):
+            parent = key.rsplit(".", 1)[0]
+            raise self.error(parent, "must be a JSON object")
+        if name not in obj:
+            raise self.error(key, "missing")
+        return obj[name]
+
+    def number(self, obj: Any, key: str, positive: bool, hi: float) -> float:
+        """``obj``'s field ``key``: see :meth:`check_number`."""
+        return self.check_number(self.get(obj, key), key, positive, hi)
+
+    def check_number(self, value: Any, key: str, positive: bool, hi: float) -> float:
+        """A finite number, > 0 when ``positive`` else >= 0, and <= ``hi``."""
+        if not is_number(value):
+            raise self.error(key, f"must be a number, got {shown(value)}")
+        number = finite_float(value)
+        if number is None or (number <= 0 if positive else number < 0) or number > hi:
+            lower = "(0" if positive else "[0"
+            raise self.error(key, f"must be in {lower}, {hi:g}], got {shown(value)}")
+        return number
+
+    def vector(self, value: Any, key: str, n: int | None, positive: bool, hi: float) -> list[float]:
+        """A list of ``n`` numbers (any non-zero length when ``n`` is None)."""
+        if not isinstance(value, list) or not value or (n is not None and len(value) != n):
+            raise self.error(key, f"must be a list of {n or 'some'} numbers")
+        return [self.check_number(v, f"{key}[{i}]", positive, hi) for i, v in enumerate(value)]
+
+    def string(self, obj: Any, key: str) -> str:
+        """``obj``'s field ``key``, a string."""
+        value = self.get(obj, key)
+        if not isinstance(value, str):
+            raise self.error(key, f"must be a string, got {shown(value)}")
+        return value
 
 
 # --- command-line value types ----------------------------------------------------------

@@ -49,18 +49,20 @@ class ScenarioConfig:
     circle_axis: Literal["x", "y", "xy"] = "x"
     radius_m: float = field(default=0.01, metadata=in_range(1e-6, 1.0))
     feed_m_s: float = field(default=0.02, metadata=in_range(1e-6, 10.0))
-    revolutions: float = field(default=1.0, metadata=positive())
-    amplitude_m: float = field(default=1e-3, metadata=positive())
+    revolutions: float = field(default=1.0, metadata=positive(1e3))
+    amplitude_m: float = field(default=1e-3, metadata=positive(1.0))
     frequency_Hz: float = field(default=2.0, metadata=in_range(1e-3, 1e3))
-    periods: float = field(default=2.0, metadata=positive())
-    acceleration_window_s: float = field(default=0.01, metadata=positive())
-    jerk_window_s: float = field(default=0.005, metadata=positive())
-    dwell_s: float = field(default=0.2, metadata=positive())
+    periods: float = field(default=2.0, metadata=positive(1e5))
+    acceleration_window_s: float = field(default=0.01, metadata=positive(10.0))
+    jerk_window_s: float = field(default=0.005, metadata=positive(10.0))
+    dwell_s: float = field(default=0.2, metadata=positive(60.0))
     transport_delay_cycles: int = field(default=1, metadata=in_range(0, 1000))
-    reversal_window_s: float = field(default=0.15, metadata=positive())
-    min_stop_s: float = field(default=0.01, metadata=positive())
-    calibration_travel_m: float = field(default=1e-3, metadata=positive())
-    calibration_velocities_m_s: tuple[float, ...] = field(default=(0.01, 0.05), metadata=positive())
+    reversal_window_s: float = field(default=0.15, metadata=positive(10.0))
+    min_stop_s: float = field(default=0.01, metadata=positive(10.0))
+    calibration_travel_m: float = field(default=1e-3, metadata=positive(1.0))
+    calibration_velocities_m_s: tuple[float, ...] = field(
+        default=(0.01, 0.05), metadata=positive(10.0, max_items=8)
+    )
 
     def problems(self) -> list[tuple[str, str]]:
         """`calibration_velocities_m_s` holds two distinct speeds."""

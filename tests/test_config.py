@@ -51,7 +51,7 @@ BAD_VALUES = [
     ("ball_loads_N", "[]", "stand.ball_loads_N", "non-empty array"),
     ("ball_radius_m", '"3 mm"', "bearing.ball_radius_m", "must be a number"),
     ("ball_radius_m", "true", "bearing.ball_radius_m", "must be a number"),
-    ("ball_radius_m", "nan", "bearing.ball_radius_m", "must be finite"),
+    ("ball_radius_m", "nan", "bearing.ball_radius_m", "must be in"),
     ("ball_loads_N", "50.0", "stand.ball_loads_N", "non-empty array"),
     ("ball_loads_N", '["a"]', "stand.ball_loads_N[0]", "must be a number"),
     ("tangential_stiffness", '"hooke"', "model.tangential_stiffness", "must be one of"),

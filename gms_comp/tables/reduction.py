@@ -51,7 +51,7 @@ from gms_comp.physics.contact import contact_problem, hertz_contact
 from gms_comp.physics.profiles import seed_fig7_profile
 from gms_comp.physics.transient import BallSetFriction
 from gms_comp.tables.table import Fidelity, GmsTable, LoadFamily
-from gms_comp.validation import MAX_FAMILY_LOADS, MAX_TABLE_ELEMENTS
+from gms_comp.validation import MAX_FAMILY_LOADS, MAX_SEED, MAX_TABLE_ELEMENTS
 
 Path_ = tuple[FloatArray, FloatArray]
 Reference = tuple[Path_, FloatArray]
@@ -94,7 +94,7 @@ class TableConfig:
     curve_points: int = field(default=300, metadata=in_range(20, 100_000))
     sample_rate_Hz: float = field(default=20_000.0, metadata=in_range(100.0, 1e6))
     random_reversals: int = field(default=30, metadata=in_range(1, 10_000))
-    random_seed: int = 0
+    random_seed: int = field(default=0, metadata=in_range(0, MAX_SEED))
     family_loads_N: tuple[float, ...] = field(
         default=(), metadata=in_range(1e-3, 1e5, max_items=MAX_FAMILY_LOADS)
     )

@@ -50,9 +50,13 @@ from gms_comp.validation import (
     MAX_FAMILY_LOADS,
     MAX_TABLE_BYTES,
     MAX_TABLE_ELEMENTS,
+    JsonReader,
     check_count,
+    finite_float,
+    is_number,
     parse_json,
     read_text,
+    shown,
 )
 
 FORMAT = "gms-comp-table"
@@ -225,29 +229,29 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
     if not isinstance(doc, dict):
         raise r.error("", "must be a JSON object")
     if doc.get("format") != FORMAT:
-        raise r.error("format", f"must be {FORMAT!r}, got {doc.get('format')!r}")
+        raise r.error("format", f"must be {FORMAT!r}, got {shown(doc.get('format'))}")
     fv = r.get(doc, "format_version")
     if fv not in (FORMAT_VERSION, TAIL_FORMAT_VERSION, LAW_FORMAT_VERSION) or isinstance(fv, bool):
-        raise r.error("format_version", f"unknown version {fv!r} (this reader knows 1 to 3)")
+        raise r.error("format_version", f"unknown version {shown(fv)} (this reader knows 1 to 3)")
     version = r.version(doc, "gms_comp_version")
     units = r.get(doc, "units")
     if units != UNITS:
-        raise r.error("units", f"must be {UNITS}, got {units!r}")
+        raise r.error("units", f"must be {UNITS}, got {shown(units)}")
     n = r.get(doc, "elements")
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise r.error("elements", f"must be a positive integer, got {n!r}")
+        raise r.error("elements", f"must be a positive integer, got {shown(n)}")
     check_count(where, "elements", n, MAX_TABLE_ELEMENTS, "elements", error=TableError)
-    k = r.vector(
+    k = r.array(
         r.get(doc, "stiffness_N_per_m"), "stiffness_N_per_m", n, True, MAX_STIFFNESS_N_PER_M
     )
-    w = r.vector(r.get(doc, "limit_N"), "limit_N", n, False, MAX_FORCE_N)
+    w = r.array(r.get(doc, "limit_N"), "limit_N", n, False, MAX_FORCE_N)
     level = r.get(doc, "velocity_level")
     rate = r.get(doc, "attraction_rate_per_s")
     tail = level.get("transition_tail") if isinstance(level, dict) else None
     law = level.get("limit_follows_level", False) if isinstance(level, dict) else False
     if not isinstance(law, bool) or (law and rate is not None):
         why = "must be true or false" if not isinstance(law, bool) else "needs a null attraction"
-        raise r.error("velocity_level.limit_follows_level", f"{why}, got {law!r}")
+        raise r.error("velocity_level.limit_follows_level", f"{why}, got {shown(law)}")
     params = GmsParams(
         k,
         w,
@@ -284,52 +288,20 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
     )
 
 
-class _Reader:
+class _Reader(JsonReader):
     """Field accessors that raise :class:`TableError` naming the file and the field."""
 
     def __init__(self, where: str) -> None:
+        super().__init__(where, TableError)
         self.where = where
 
     def error(self, key: str, reason: str) -> TableError:
+        """The refusal of field ``key`` (a :class:`TableError`)."""
         return TableError(self.where, key, reason)
 
-    def get(self, obj: Any, key: str) -> Any:
-        """``obj[last part of key]``; a missing key is reported with its full name."""
-        name = key.rsplit(".", 1)[-1]
-        if not isinstance(obj, dict):
-            parent = key.rsplit(".", 1)[0]
-            raise self.error(parent, "must be a JSON object")
-        if name not in obj:
-            raise self.error(key, "missing")
-        return obj[name]
-
-    def number(self, obj: Any, key: str, positive: bool, hi: float) -> float:
-        return self.check_number(self.get(obj, key), key, positive, hi)
-
-    def check_number(self, value: Any, key: str, positive: bool, hi: float) -> float:
-        """A finite number, > 0 when ``positive`` else >= 0, and <= ``hi``."""
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.error(key, f"must be a number, got {value!r}")
-        bad = value <= 0 if positive else value < 0
-        if not math.isfinite(value) or bad:
-            raise self.error(key, f"must be {'> 0' if positive else '>= 0'}, got {value!r}")
-        if value > hi:
-            raise self.error(key, f"must be <= {hi:g}, got {value!r}")
-        return float(value)
-
-    def vector(self, value: Any, key: str, n: int | None, positive: bool, hi: float) -> FloatArray:
-        """A list of ``n`` numbers (any non-zero length when ``n`` is None)."""
-        if not isinstance(value, list) or not value or (n is not None and len(value) != n):
-            raise self.error(key, f"must be a list of {n or 'some'} numbers")
-        return np.array(
-            [self.check_number(v, f"{key}[{i}]", positive, hi) for i, v in enumerate(value)]
-        )
-
-    def string(self, obj: Any, key: str) -> str:
-        value = self.get(obj, key)
-        if not isinstance(value, str):
-            raise self.error(key, f"must be a string, got {value!r}")
-        return value
+    def array(self, value: Any, key: str, n: int | None, positive: bool, hi: float) -> FloatArray:
+        """:meth:`vector` as an array."""
+        return np.array(self.vector(value, key, n, positive, hi))
 
     def sha256(self, obj: Any, key: str) -> str:
         value = self.string(obj, key)
@@ -343,7 +315,9 @@ class _Reader:
         ours = _VERSION.match(__version__)
         assert ours is not None
         if found is None or found.group(1) != ours.group(1):
-            raise self.error(key, f"unknown version {value!r} (this is gms-comp {__version__})")
+            raise self.error(
+                key, f"unknown version {shown(value)} (this is gms-comp {__version__})"
+            )
         return value
 
     def load_family(self, doc: Any, n: int) -> LoadFamily | None:
@@ -354,7 +328,7 @@ class _Reader:
         loads = self.get(family, key)
         if isinstance(loads, list):
             check_count(self.where, key, len(loads), MAX_FAMILY_LOADS, "loads", error=TableError)
-        loads = self.vector(loads, key, None, True, MAX_FORCE_N)
+        loads = self.array(loads, key, None, True, MAX_FORCE_N)
         if np.any(np.diff(loads) <= 0):
             raise self.error(key, "must be increasing")
         rows = []
@@ -368,7 +342,7 @@ class _Reader:
                 raise self.error(key, f"must hold {loads.size} rows")
             rows.append(
                 np.array(
-                    [self.vector(v, f"{key}[{i}]", n, positive, hi) for i, v in enumerate(value)]
+                    [self.array(v, f"{key}[{i}]", n, positive, hi) for i, v in enumerate(value)]
                 )
             )
         return LoadFamily(loads, rows[0], rows[1])
@@ -402,7 +376,7 @@ class _Reader:
             key = f"extensions.{i}"
             effect = self.string(item, f"{key}.effect")
             if not _NAME.match(effect):
-                raise self.error(f"{key}.effect", f"must be a name, got {effect!r}")
+                raise self.error(f"{key}.effect", f"must be a name, got {shown(effect)}")
             params = self.get(item, f"{key}.parameters")
             if not isinstance(params, dict):
                 raise self.error(f"{key}.parameters", "must be a JSON object")
@@ -411,10 +385,11 @@ class _Reader:
                 pkey = f"{key}.parameters.{name}"
                 if not _NAME.match(name):
                     raise self.error(pkey, "parameter names must be names")
-                if isinstance(value, bool) or not isinstance(value, (int, float)):
-                    raise self.error(pkey, f"must be a number, got {value!r}")
-                if not math.isfinite(value) or abs(value) > 1e12:
-                    raise self.error(pkey, f"must be finite and within +-1e12, got {value!r}")
-                values[name] = float(value)
+                if not is_number(value):
+                    raise self.error(pkey, f"must be a number, got {shown(value)}")
+                number = finite_float(value)
+                if number is None or abs(number) > 1e12:
+                    raise self.error(pkey, f"must be finite and within +-1e12, got {shown(value)}")
+                values[name] = number
             out.append(Extension(effect, values))
         return tuple(out)
