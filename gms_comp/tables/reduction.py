@@ -46,8 +46,7 @@ from gms_comp.arrays import FloatArray
 from gms_comp.config import config_hash, in_range, parse_section, read_toml
 from gms_comp.errors import ConfigError, InputError
 from gms_comp.gms import GmsParams, simulate, simulate_elements
-from gms_comp.physics.config import BallConfig
-from gms_comp.physics.contact import contact_problem, hertz_contact
+from gms_comp.physics.config import BallConfig, check_loads
 from gms_comp.physics.profiles import seed_fig7_profile
 from gms_comp.physics.transient import BallSetFriction
 from gms_comp.tables.table import Fidelity, GmsTable, LoadFamily
@@ -313,9 +312,10 @@ def _at_ball_load(cfg: BallConfig, normal_load_N: float) -> BallConfig:
     return dataclasses.replace(cfg, stand=dataclasses.replace(cfg.stand, ball_loads_N=loads))
 
 
-def _check_request(cfg: BallConfig, n_elements: int, tc: TableConfig) -> None:
+def check_request(cfg: BallConfig, n_elements: int, tc: TableConfig) -> None:
     """Refuse an element count or family loads that bypassed the config's bounds
-    (command-line values), before any work is done."""
+    (command-line values), or family loads outside the Hertz model, before any work is
+    done (``gms-comp config`` calls it too)."""
     if isinstance(n_elements, bool) or not 1 <= n_elements <= MAX_TABLE_ELEMENTS:
         raise InputError(
             "elements", "", f"must be in [1, {MAX_TABLE_ELEMENTS}], got {n_elements!r}"
@@ -330,9 +330,7 @@ def _check_request(cfg: BallConfig, n_elements: int, tc: TableConfig) -> None:
             raise ConfigError(
                 cfg.path, f"table.family_loads_N[{i}]", f"must be in [0.001, 100000], got {load!r}"
             )
-        problem = contact_problem(hertz_contact(cfg.bearing, load), cfg.bearing.ball_radius_m)
-        if problem is not None:
-            raise ConfigError(cfg.path, f"table.family_loads_N[{i}]", problem)
+    check_loads(cfg, loads, "table.family_loads_N")
 
 
 def reduce_to_gms(
@@ -360,7 +358,7 @@ def reduce_to_gms(
     """
     tc = table_cfg if table_cfg is not None else load_table_config(cfg.path)
     n = n_elements if n_elements is not None else tc.elements
-    _check_request(cfg, n, tc)
+    check_request(cfg, n, tc)
     template = GmsParams(
         np.ones(1),
         np.ones(1),
