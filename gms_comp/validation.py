@@ -10,13 +10,13 @@ decoded as strict UTF-8, its bracket nesting counted before a parser recurses in
 and element, sample, point and load counts are compared with the caps below before any
 array is made. docs/limits.md lists every bound (a test keeps it in step with the code).
 
-The command-line helpers here check output paths when the arguments are parsed, so that
-a run never computes for minutes and then fails to write its result.
+Numbers are checked before they are converted (:func:`finite_float`: a 400-digit integer
+is refused, not overflowed), JSON documents field by field (:class:`JsonReader`). Values
+and paths on the command line are checked in :mod:`gms_comp.arguments`.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -268,95 +268,3 @@ class JsonReader:
         if not isinstance(value, str):
             raise self.error(key, f"must be a string, got {shown(value)}")
         return value
-
-
-# --- command-line value types ----------------------------------------------------------
-
-
-def int_in_range(lo: int, hi: int) -> Callable[[str], int]:
-    """An argparse ``type``: an integer in [lo, hi]."""
-
-    def parse(value: str) -> int:
-        try:
-            number = int(value)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be an integer, got {value!r}") from None
-        if not lo <= number <= hi:
-            raise argparse.ArgumentTypeError(f"must be in [{lo}, {hi}], got {number}")
-        return number
-
-    parse.__name__ = "integer"
-    return parse
-
-
-def float_in_range(lo: float, hi: float) -> Callable[[str], float]:
-    """An argparse ``type``: a finite number in [lo, hi]."""
-
-    def parse(value: str) -> float:
-        try:
-            number = float(value)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be a number, got {value!r}") from None
-        if not (math.isfinite(number) and lo <= number <= hi):
-            raise argparse.ArgumentTypeError(f"must be in [{lo:g}, {hi:g}], got {value}")
-        return number
-
-    parse.__name__ = "number"
-    return parse
-
-
-_ADDRESS = re.compile(r"^(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+)(:(\d{1,5}))?$")
-
-
-def scheduler_address(value: str) -> str:
-    """An argparse ``type``: a Dask scheduler address ``tcp://host:port`` or ``tls://...``."""
-    found = _ADDRESS.match(value.strip())
-    if found is None:
-        raise argparse.ArgumentTypeError(
-            f"{value!r} is not a scheduler address (expected tls://HOST:PORT or tcp://HOST:PORT)"
-        )
-    port = found.group(4)
-    if port is not None and not 0 < int(port) < 65536:
-        raise argparse.ArgumentTypeError(f"{value!r}: port must be in [1, 65535]")
-    return value.strip()
-
-
-def output_file(value: str) -> Path:
-    """An argparse ``type`` for a file to be written: its folder exists and is writable,
-    and the path is not a folder."""
-    path = Path(value)
-    if value == "" or path.is_dir():
-        raise argparse.ArgumentTypeError(f"{value!r} is a folder, expected a file name")
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise argparse.ArgumentTypeError(f"{value!r}: folder {str(folder)!r} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise argparse.ArgumentTypeError(f"{value!r}: folder {str(folder)!r} is not writable")
-    return path
-
-
-def output_dir(value: str) -> Path:
-    """An argparse ``type`` for a folder to write into: it exists as a folder or can be
-    created (its nearest existing ancestor is a writable folder)."""
-    path = Path(value)
-    if value == "":
-        raise argparse.ArgumentTypeError("empty folder name")
-    if path.exists() and not path.is_dir():
-        raise argparse.ArgumentTypeError(f"{value!r} is a file, expected a folder")
-    ancestor = path
-    while not ancestor.exists():
-        ancestor = ancestor.parent
-    if not ancestor.is_dir():
-        raise argparse.ArgumentTypeError(f"{value!r}: {str(ancestor)!r} is a file")
-    if not os.access(ancestor, os.W_OK):
-        raise argparse.ArgumentTypeError(f"{value!r}: {str(ancestor)!r} is not writable")
-    return path
-
-
-def input_file(value: str) -> Path:
-    """An argparse ``type`` for a file to be read: it exists and is a file."""
-    path = Path(value)
-    if not path.is_file():
-        what = "is a folder" if path.is_dir() else "does not exist"
-        raise argparse.ArgumentTypeError(f"{value!r} {what}")
-    return path

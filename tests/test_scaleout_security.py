@@ -20,9 +20,9 @@ import pytest
 
 from gms_comp.app.cli import main
 from gms_comp.app.scaleout import PLAIN_TCP_WARNING, _check_remote, dask_client, tls_files
+from gms_comp.arguments import scheduler_address
 from gms_comp.config import default_config_path
 from gms_comp.errors import InputError
-from gms_comp.validation import scheduler_address
 
 crypto = pytest.importorskip(
     "cryptography", reason="the TLS test makes its certificates with the cryptography package"

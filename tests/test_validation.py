@@ -7,12 +7,11 @@ from pathlib import Path
 
 import pytest
 
+from gms_comp.arguments import float_in_range, int_in_range
 from gms_comp.errors import ConfigError, GmsCompError, InputError, TableError, TraceError
 from gms_comp.validation import (
     MAX_NESTING_DEPTH,
     decode_utf8,
-    float_in_range,
-    int_in_range,
     nesting_depth,
     parse_json,
     read_text,

@@ -26,7 +26,10 @@ from typing import TYPE_CHECKING, NoReturn
 if TYPE_CHECKING:
     from sys import UnraisableHookArgs
 
+from pathlib import Path
+
 from gms_comp import __version__
+from gms_comp.arguments import PathArgument, PathRole, check_paths
 from gms_comp.errors import GmsCompError
 
 # One line per subcommand, each a module gms_comp.app.commands.<name> with register().
@@ -70,7 +73,30 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     module = (command or "").replace("-", "_")
     for name in (module,) if module in SUBCOMMANDS else SUBCOMMANDS:
         importlib.import_module(f"gms_comp.app.commands.{name}").register(sub)
+    for subparser in sub.choices.values():
+        subparser.set_defaults(path_arguments=_path_arguments(subparser))
     return parser
+
+
+def _path_arguments(parser: argparse.ArgumentParser) -> tuple[tuple[str, str, PathRole], ...]:
+    """``(dest, option, role)`` of each path argument of ``parser`` (its type a
+    :class:`~gms_comp.arguments.PathArgument`)."""
+    return tuple(
+        (a.dest, "/".join(a.option_strings) or a.metavar or a.dest, a.type.role)  # type: ignore[misc]
+        for a in parser._actions
+        if isinstance(a.type, PathArgument)
+    )
+
+
+def _given_paths(args: argparse.Namespace) -> list[tuple[str, PathRole, Path]]:
+    """The paths given on the command line, with their option and role."""
+    found: list[tuple[str, PathRole, Path]] = []
+    for dest, option, role in getattr(args, "path_arguments", ()):
+        value = getattr(args, dest, None)
+        for item in value if isinstance(value, list) else [value]:
+            if isinstance(item, Path):
+                found.append((option, role, item))
+    return found
 
 
 def _command(argv: Sequence[str]) -> str | None:
@@ -87,6 +113,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         words = sys.argv[1:] if argv is None else list(argv)
         args = build_parser(_command(words)).parse_args(words)
         command = f"gms-comp {args.command}"
+        check_paths(_given_paths(args))  # before any work: no output over an input
         code: int = args.func(args)
         if _REDELIVERY["lost"]:  # lost, and its thread has not run yet
             raise KeyboardInterrupt

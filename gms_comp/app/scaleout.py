@@ -34,9 +34,10 @@ from urllib.parse import urlsplit
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
+from gms_comp.arguments import input_file, int_in_range, scheduler_address
 from gms_comp.config import parse_section
 from gms_comp.errors import ConfigError, GmsCompError, InputError
-from gms_comp.validation import MAX_WORKERS, input_file, int_in_range, scheduler_address
+from gms_comp.validation import MAX_WORKERS
 
 #: Printed (one line, stderr) when a remote scheduler is reached over plain tcp.
 PLAIN_TCP_WARNING = (

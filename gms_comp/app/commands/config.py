@@ -26,13 +26,13 @@ from typing import Any
 
 from firmware_bridge.settings import CanConfig, load_can_config
 from gms_comp.app.scaleout import ScaleoutConfig, load_scaleout
+from gms_comp.arguments import input_file, output_file
 from gms_comp.atomic import write_text
 from gms_comp.config import default_config_path, parse_section, read_toml
 from gms_comp.measured.diagnosis.run import DiagnosisConfig, load_diagnosis_config
 from gms_comp.physics.config import BearingConfig, ModelConfig, StandConfig, load_ball_config
 from gms_comp.runtime.observer import CompensatorConfig
 from gms_comp.tables.reduction import TableConfig, check_request, load_table_config
-from gms_comp.validation import input_file, output_file
 from sim.controller import ControllerConfig
 from sim.plant import PlantConfig
 from sim.scenarios import ScenarioConfig, load_scenario

@@ -20,6 +20,7 @@ from tqdm import tqdm
 
 from gms_comp.app.fleet import FleetJob, diagnose_fleet, format_table, report_names
 from gms_comp.app.scaleout import add_cluster_arguments, cli_tls, dask_client
+from gms_comp.arguments import input_file, output_file, replaced_dir
 from gms_comp.config import config_hash, read_toml
 from gms_comp.errors import GmsCompError
 from gms_comp.gms import GmsParams
@@ -32,7 +33,6 @@ from gms_comp.physics.config import load_ball_config
 from gms_comp.runtime.effects import effect_to_dict
 from gms_comp.tables.reduction import reduce_to_gms
 from gms_comp.tables.table import Extension, Fidelity, GmsTable, read_table, write_table
-from gms_comp.validation import output_dir, output_file
 
 COLUMNS_HELP = (
     "A canonical CSV has a header row and one sample per row, SI units: time_s (s, strictly "
@@ -57,11 +57,13 @@ def register(subparsers: Any) -> None:
         "traces",
         nargs="+",
         metavar="TRACE",
+        type=input_file,
         help="canonical CSV, EMPS .mat, or any .csv/.mat with --map",
     )
     add_cluster_arguments(p)
     p.add_argument(
         "--config",
+        type=input_file,
         help=(
             "config file: [diagnosis] section; with [bearing] and [stand] sections its ball "
             "model is reduced to a GMS table, calibrated as the baseline"
@@ -70,6 +72,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--table-in",
         metavar="TABLE",
+        type=input_file,
         help="GMS table to calibrate as the baseline (its level, presliding, velocity level)",
     )
     p.add_argument(
@@ -77,7 +80,12 @@ def register(subparsers: Any) -> None:
         choices=("friction", "drive"),
         help="what force_N is (default: drive for EMPS files, else friction)",
     )
-    p.add_argument("--validate", metavar="TRACE2", help="held-out trace (else blocks of TRACE)")
+    p.add_argument(
+        "--validate",
+        metavar="TRACE2",
+        type=input_file,
+        help="held-out trace (else blocks of TRACE)",
+    )
     p.add_argument(
         "--map",
         action="append",
@@ -91,7 +99,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--report",
         metavar="DIR",
-        type=output_dir,
+        type=replaced_dir,
         help="write plots, index.html and the extended table into this folder",
     )
     p.add_argument(
@@ -101,6 +109,7 @@ def register(subparsers: Any) -> None:
         "--closed-loop",
         nargs="?",
         const="",
+        type=input_file,
         metavar="SCENARIO",
         help=(
             "simulate the axis with the diagnosed friction and compare the compensator with "

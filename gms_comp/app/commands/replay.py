@@ -21,8 +21,8 @@ import numpy as np
 
 from gms_comp.app import replay as rp
 from gms_comp.app import replay_compensation as rc
+from gms_comp.arguments import float_in_range, input_file, plot_file
 from gms_comp.atomic import atomic_path
-from gms_comp.validation import float_in_range, input_file, output_file
 from sim.link import DirectLink, FeedforwardLink
 from sim.position_loop import LoopRun
 
@@ -106,7 +106,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     p.add_argument(
         "--plot",
-        type=output_file,
+        type=plot_file,
         metavar="PNG",
         help="plot errors and force over time (and <stem>_compensation<suffix>)",
     )

@@ -19,12 +19,15 @@ from pathlib import Path
 from typing import Any
 
 from firmware_bridge.faults import parse_fault
+from firmware_bridge.frame_log import LOG_SUFFIXES
 from firmware_bridge.profiles import PROFILES
 from firmware_bridge.session import FeedforwardSource, Rig, stream_on
 from firmware_bridge.settings import CanConfig, load_can_config
+from gms_comp.arguments import input_file, int_in_range, output_file, suffixed_file
 from gms_comp.atomic import atomic_path, write_text
 from gms_comp.config import default_config_path
-from gms_comp.validation import InputError, output_file
+from gms_comp.errors import InputError
+from gms_comp.validation import MAX_SEED
 
 MAX_DURATION_S = 3600.0
 MAX_STREAM_CYCLES = 1_000_000
@@ -44,7 +47,7 @@ def register(subparsers: Any) -> None:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("config", nargs="?", type=Path, help="config file (default: Table 1)")
+    p.add_argument("config", nargs="?", type=input_file, help="config file (default: Table 1)")
     p.add_argument("--profile", choices=tuple(PROFILES), help="override [can] profile")
     p.add_argument("--interface", help="python-can interface (virtual, socketcan, pcan, ...)")
     p.add_argument("--channel", help="python-can channel")
@@ -69,7 +72,12 @@ def register(subparsers: Any) -> None:
         help="a drive is already on the bus (a real one, or python -m firmware_bridge.emulator):"
         " do not start the built-in emulator; drive-side figures are then null",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the fault injector")
+    p.add_argument(
+        "--seed",
+        type=int_in_range(0, MAX_SEED),
+        default=0,
+        help=f"seed of the fault injector, 0 to {MAX_SEED} (0)",
+    )
     p.add_argument(
         "--json", action="store_true", help="print the report as JSON on stdout, nothing else"
     )
@@ -77,7 +85,10 @@ def register(subparsers: Any) -> None:
         "-o", "--output", type=output_file, metavar="FILE.json", help="write the JSON report"
     )
     p.add_argument(
-        "--log", type=output_file, metavar="FILE", help="log all frames (.blf, .asc, .csv, ...)"
+        "--log",
+        type=suffixed_file(LOG_SUFFIXES, "frame log"),
+        metavar="FILE",
+        help=f"log all frames ({', '.join(LOG_SUFFIXES)})",
     )
     p.set_defaults(func=run)
 

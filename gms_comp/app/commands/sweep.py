@@ -10,7 +10,7 @@ from typing import Any
 
 from gms_comp.app.scaleout import add_cluster_arguments, cli_tls, dask_client, tls_files
 from gms_comp.app.sweep import load_sweep, run_sweep
-from gms_comp.validation import output_dir
+from gms_comp.arguments import input_file, output_dir
 
 
 def register(subparsers: Any) -> None:
@@ -25,7 +25,9 @@ def register(subparsers: Any) -> None:
             "the same folder resumes: points already done are not computed again."
         ),
     )
-    parser.add_argument("sweep_file", type=Path, metavar="SWEEP.toml", help="sweep definition")
+    parser.add_argument(
+        "sweep_file", type=input_file, metavar="SWEEP.toml", help="sweep definition"
+    )
     add_cluster_arguments(parser, "[scaleout] scheduler of the sweep file, else a local cluster")
     parser.add_argument(
         "-o",
