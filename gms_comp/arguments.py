@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
+from gms_comp.atomic import check_replaceable
 from gms_comp.errors import InputError
 
 
@@ -183,8 +184,20 @@ def suffixed_file(suffixes: tuple[str, ...], what: str) -> PathArgument:
 output_file = PathArgument("output", _writable_file)
 #: An argparse ``type`` for a folder to write files into.
 output_dir = PathArgument("folder", _writable_folder)
-#: An argparse ``type`` for a folder written as one set, replacing the old one at the end.
-replaced_dir = PathArgument("replaced folder", _writable_folder)
+
+
+def _replaceable_folder(value: str) -> Path:
+    path = _writable_folder(value)
+    try:
+        check_replaceable(path)
+    except InputError as err:
+        raise argparse.ArgumentTypeError(f"{value!r} {err.problem}") from None
+    return path
+
+
+#: An argparse ``type`` for a folder written as one set, replacing the old one at the end
+#: (:func:`gms_comp.atomic.replaced_folder`): new, empty, or a set gms-comp wrote.
+replaced_dir = PathArgument("replaced folder", _replaceable_folder)
 #: An argparse ``type`` for a file to be read: it exists and is a regular file.
 input_file = PathArgument("input", _readable_file)
 #: An argparse ``type`` for a plot to be written: a suffix matplotlib writes.

@@ -5,7 +5,10 @@ Each subcommand lives in ``gms_comp.app.commands.<name>`` and exposes
 taking the parsed namespace and returning the exit code. Bad input raised as
 :class:`~gms_comp.errors.GmsCompError` becomes one line on stderr and exit code 2;
 Ctrl-C, wherever it lands (importing the subcommands, parsing, running), one line
-and exit code 130; a closed stdout (``| head``) ends the run quietly with exit code 1.
+and exit code 130, SIGTERM one line and exit code 143, both after every file being
+written has been removed (the atomic writer's temporary files, a frame log) and a Dask
+cluster shut down quietly; a closed stdout (``| head``) ends the run quietly with exit
+code 1.
 
 Every subcommand follows one convention: ``--json`` prints the result as JSON on
 stdout and nothing else there; without it a short human summary goes to stdout.
@@ -19,7 +22,9 @@ import _thread
 import argparse
 import importlib
 import os
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, NoReturn
 
@@ -48,6 +53,16 @@ SUBCOMMANDS: tuple[str, ...] = (
 )
 
 INTERRUPTED = 130  # the shell's code for a process ended by SIGINT
+TERMINATED = 143  # ... and by SIGTERM
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread like Ctrl-C so that every ``finally`` and
+    context manager on the way out runs (temporary files removed, clusters closed)."""
+
+
+def _terminate(_signum: int, _frame: object) -> None:
+    raise Terminated
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -108,6 +123,8 @@ def _command(argv: Sequence[str]) -> str | None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``gms-comp`` with ``argv`` (default: the process arguments); return the exit code."""
     deliver_lost_interrupts()
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
     command = "gms-comp"
     try:
         words = sys.argv[1:] if argv is None else list(argv)
@@ -127,13 +144,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         _REDELIVERY["armed"] = False  # interrupted once is enough
         quiet_finalizers()
-        print(f"{command}: interrupted", file=sys.stderr)
-        return INTERRUPTED
+        terminated = isinstance(err, Terminated) or isinstance(err.__cause__, Terminated)
+        print(f"{command}: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
+        return TERMINATED if terminated else INTERRUPTED
     except BrokenPipeError:  # the reader of stdout went away (`gms-comp ... | head`)
         _silence_stdout()
         return 1
     finally:
         _REDELIVERY["armed"] = False
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     return code
 
 

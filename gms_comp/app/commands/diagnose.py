@@ -19,8 +19,10 @@ import numpy as np
 from tqdm import tqdm
 
 from gms_comp.app.fleet import FleetJob, diagnose_fleet, format_table, report_names
-from gms_comp.app.scaleout import add_cluster_arguments, cli_tls, dask_client
+from gms_comp.app.report_set import input_record, write_report_set
+from gms_comp.app.scaleout import add_cluster_arguments, cli_client
 from gms_comp.arguments import input_file, output_file, replaced_dir
+from gms_comp.atomic import SET_MANIFEST, write_text
 from gms_comp.config import config_hash, read_toml
 from gms_comp.errors import GmsCompError
 from gms_comp.gms import GmsParams
@@ -133,7 +135,7 @@ def _progress(enabled: bool) -> Iterator[Callable[[str], None]]:
 def run(args: argparse.Namespace) -> int:
     """Diagnose one trace (or a fleet) and report."""
     mapping = parse_mapping(args.map, "--map") if args.map else None
-    if len(args.traces) > 1 or args.scheduler:
+    if len(args.traces) > 1 or args.scheduler or args.cluster_config:
         return _run_fleet(args, mapping)
     args.trace = args.traces[0]
     trace = load_trace(args.trace, mapping)
@@ -152,21 +154,18 @@ def run(args: argparse.Namespace) -> int:
         )
 
         doc["closed_loop"] = closed_loop_gain(result, args.closed_loop or None)
-    table_path = args.table or (Path(args.report) / "extended.table.json" if args.report else None)
     written: list[str] = []
     if args.report:
-        Path(args.report).mkdir(parents=True, exist_ok=True)
-    if table_path is not None:
-        write_table(table_path, _table(result, args.trace))
-        doc["table"] = str(table_path)
-        written.append(str(table_path))
-    if args.report:
-        from gms_comp.measured.diagnosis.report import (
-            write_report,  # matplotlib only when asked for
+        files = write_report_set(
+            result, args.report, _inputs(args), _table(result, args.trace), args.table
         )
-
-        doc["report"] = [str(p) for p in write_report(result, args.report)]
-        written.extend(doc["report"])
+        doc["table"] = str(files[0])
+        doc["report"] = [str(p) for p in files[1:]]
+        written = [str(p) for p in files]
+    elif args.table:
+        write_table(args.table, _table(result, args.trace))
+        doc["table"] = str(args.table)
+        written.append(str(args.table))
     if args.json:
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
         for path in written:
@@ -252,6 +251,19 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
     return "\n".join(lines)
 
 
+def _inputs(args: argparse.Namespace) -> dict[str, Any]:
+    """The run's input files, each with its path and SHA-256 (named by the report)."""
+    return input_record(
+        {
+            "trace": args.trace,
+            "validate": args.validate,
+            "config": args.config,
+            "table_in": args.table_in,
+            "closed_loop": args.closed_loop,
+        }
+    )
+
+
 def _baseline_table(args: argparse.Namespace) -> GmsParams | None:
     """The GMS table to calibrate: ``--table-in``, else the ball model of a ``--config``
     that describes a bearing, else none (the free NNLS GMS)."""
@@ -288,9 +300,14 @@ def _run_fleet(args: argparse.Namespace, mapping: Mapping[str, str] | None) -> i
     if args.serial:
         fleet = diagnose_fleet(jobs)
     else:
-        with dask_client(args.scheduler, args.workers, cli_tls(args)) as client:
+        with cli_client(args) as client:
             fleet = diagnose_fleet(jobs, client=client)
     written = [p for row in fleet["traces"] for p in row.get("report", [])]
+    if args.report:  # the fleet's index, written last: each trace's report is its own set
+        index = {"format": "gms-comp-fleet-report", "version": 1, "traces": [
+            {k: row.get(k) for k in ("trace", "status", "report")} for row in fleet["traces"]
+        ]}  # fmt: skip
+        written.append(str(write_text(Path(args.report) / SET_MANIFEST, json.dumps(index) + "\n")))
     if args.json:
         sys.stdout.write(json.dumps(fleet, indent=2) + "\n")
     else:
