@@ -300,6 +300,11 @@ def baseline_axis_model(baseline: Mapping[str, Any], where: str) -> RigidAxisMod
         slip_level=r.number(baseline, f"{key}.slip_level", True, MAX_SLIP_LEVEL),
         limit_follows_level=law, **level,
     )  # fmt: skip
+    if r.get(baseline, f"{key}.mass_kg") == 0:
+        raise r.error(
+            f"{key}.mass_kg", "is 0: the diagnosis of a friction-force trace has no mass to "
+            "replay; give the diagnosis of a drive-force record (or a table)",
+        )  # fmt: skip
     return RigidAxisModel(r.number(baseline, f"{key}.mass_kg", True, MAX_AXIS_MASS_KG), gms=gms)
 
 

@@ -10,7 +10,7 @@ from typing import ClassVar
 import numpy as np
 
 from gms_comp.arrays import FloatArray
-from gms_comp.config import in_range, positive
+from gms_comp.config import positive
 from gms_comp.runtime.effects.base import Effect, Shape, top_speed
 from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
@@ -23,7 +23,7 @@ class Stribeck(Effect):
     name: ClassVar[str] = "stribeck"
     SHAPE: ClassVar[tuple[str, ...]] = ("v_s_m_per_s",)
     COEFFICIENT_LOWER: ClassVar[float] = 0.0  # ratio - 1 >= 0
-    ratio: float = field(metadata=in_range(1.0, 100.0))
+    ratio: float = field(metadata=positive(100.0))
     v_s_m_per_s: float = field(metadata=positive(10.0))
 
     @classmethod
