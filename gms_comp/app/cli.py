@@ -128,7 +128,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     command = "gms-comp"
     try:
         words = sys.argv[1:] if argv is None else list(argv)
-        args = build_parser(_command(words)).parse_args(words)
+        try:
+            args = build_parser(_command(words)).parse_args(words)
+        except SystemExit as done:  # --help, --version, or a refusal (one line, code 2)
+            return done.code if isinstance(done.code, int) else 2
         command = f"gms-comp {args.command}"
         check_paths(_given_paths(args))  # before any work: no output over an input
         code: int = args.func(args)

@@ -106,6 +106,29 @@ EXTENSION_CONTEXT_KEYS = {
     "rest_band_m": 1.0,
 }
 
+# The schema of a table's numbers, one entry per field (dotted path): whether it must be
+# > 0 (else >= 0) and its upper bound. The reader checks each against it; the tests draw
+# values from it. ``NULLABLE`` fields may be null (infinite),
+# ``OPTIONAL`` ones absent too.
+NUMBERS: dict[str, tuple[bool, float]] = {
+    "velocity_level.slip_level": (True, MAX_SLIP_LEVEL),
+    "velocity_level.transition_velocity_m_s": (True, MAX_TRANSITION_VELOCITY_M_S),
+    "velocity_level.transition_exponent": (True, MAX_TRANSITION_EXPONENT),
+    "velocity_level.transition_tail": (True, MAX_TRANSITION_TAIL),
+    "attraction_rate_per_s": (True, MAX_ATTRACTION_RATE_PER_S),
+    "viscous_Ns_per_m": (False, MAX_VISCOUS_NS_PER_M),
+    "fidelity.rms_rel": (False, math.inf),
+    "fidelity.max_rel": (False, math.inf),
+}
+NULLABLE = frozenset({"velocity_level.transition_tail", "attraction_rate_per_s"})
+#: Fields that may be left out (read as null).
+OPTIONAL = frozenset({"velocity_level.transition_tail"})
+#: ... and of its per-element lists (one number per element).
+VECTORS: dict[str, tuple[bool, float]] = {
+    "stiffness_N_per_m": (True, MAX_STIFFNESS_N_PER_M),
+    "limit_N": (False, MAX_FORCE_N),
+}
+
 
 @dataclass(frozen=True)
 class Fidelity:
@@ -241,46 +264,29 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise r.error("elements", f"must be a positive integer, got {shown(n)}")
     check_count(where, "elements", n, MAX_TABLE_ELEMENTS, "elements", error=TableError)
-    k = r.array(
-        r.get(doc, "stiffness_N_per_m"), "stiffness_N_per_m", n, True, MAX_STIFFNESS_N_PER_M
-    )
-    w = r.array(r.get(doc, "limit_N"), "limit_N", n, False, MAX_FORCE_N)
-    level = r.get(doc, "velocity_level")
-    rate = r.get(doc, "attraction_rate_per_s")
-    tail = level.get("transition_tail") if isinstance(level, dict) else None
-    law = level.get("limit_follows_level", False) if isinstance(level, dict) else False
-    if not isinstance(law, bool) or (law and rate is not None):
+    k, w = (r.array(r.get(doc, key), key, n, *VECTORS[key]) for key in VECTORS)
+    numbers = {key: r.schema_number(doc, key) for key in NUMBERS}
+    law = r.get(doc, "velocity_level").get("limit_follows_level", False)
+    if not isinstance(law, bool) or (law and numbers["attraction_rate_per_s"] != math.inf):
         why = "must be true or false" if not isinstance(law, bool) else "needs a null attraction"
         raise r.error("velocity_level.limit_follows_level", f"{why}, got {shown(law)}")
     params = GmsParams(
         k,
         w,
-        slip_level=r.number(level, "velocity_level.slip_level", True, MAX_SLIP_LEVEL),
-        transition_velocity_m_s=r.number(
-            level, "velocity_level.transition_velocity_m_s", True, MAX_TRANSITION_VELOCITY_M_S
-        ),
-        transition_exponent=r.number(
-            level, "velocity_level.transition_exponent", True, MAX_TRANSITION_EXPONENT
-        ),
-        attraction_rate_per_s=math.inf
-        if rate is None
-        else r.number(doc, "attraction_rate_per_s", True, MAX_ATTRACTION_RATE_PER_S),
-        viscous_Ns_per_m=r.number(doc, "viscous_Ns_per_m", False, MAX_VISCOUS_NS_PER_M),
-        transition_tail=math.inf
-        if tail is None
-        else r.number(level, "velocity_level.transition_tail", True, MAX_TRANSITION_TAIL),
+        slip_level=numbers["velocity_level.slip_level"],
+        transition_velocity_m_s=numbers["velocity_level.transition_velocity_m_s"],
+        transition_exponent=numbers["velocity_level.transition_exponent"],
+        attraction_rate_per_s=numbers["attraction_rate_per_s"],
+        viscous_Ns_per_m=numbers["viscous_Ns_per_m"],
+        transition_tail=numbers["velocity_level.transition_tail"],
         limit_follows_level=law,
     )
     source = r.get(doc, "source")
-    fidelity = r.get(doc, "fidelity")
     return GmsTable(
         params=params,
         source_config=r.string(source, "source.config"),
         source_sha256=r.sha256(source, "source.sha256"),
-        fidelity=Fidelity(
-            rms_rel=r.number(fidelity, "fidelity.rms_rel", False, math.inf),
-            max_rel=r.number(fidelity, "fidelity.max_rel", False, math.inf),
-        ),
+        fidelity=Fidelity(rms_rel=numbers["fidelity.rms_rel"], max_rel=numbers["fidelity.max_rel"]),
         version=version,
         load_family=r.load_family(doc, n),
         extensions=r.extensions(doc),
@@ -298,6 +304,18 @@ class _Reader(JsonReader):
     def error(self, key: str, reason: str) -> TableError:
         """The refusal of field ``key`` (a :class:`TableError`)."""
         return TableError(self.where, key, reason)
+
+    def schema_number(self, doc: Any, key: str) -> float:
+        """Field ``key`` of :data:`NUMBERS` (a null one of :data:`NULLABLE` is infinite)."""
+        obj = doc
+        for part in key.split(".")[:-1]:
+            obj = self.get(obj, part)
+        name = key.rsplit(".", 1)[-1]
+        nullable = key in NULLABLE and isinstance(obj, dict) and obj.get(name) is None
+        if nullable and (name in obj or key in OPTIONAL):
+            return math.inf
+        positive, hi = NUMBERS[key]
+        return self.number(obj, key, positive, hi)
 
     def array(self, value: Any, key: str, n: int | None, positive: bool, hi: float) -> FloatArray:
         """:meth:`vector` as an array."""
