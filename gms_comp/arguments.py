@@ -39,16 +39,18 @@ def int_in_range(lo: int, hi: int) -> Callable[[str], int]:
     return parse
 
 
-def float_in_range(lo: float, hi: float) -> Callable[[str], float]:
-    """An argparse ``type``: a finite number in [lo, hi]."""
+def float_in_range(lo: float, hi: float, *, lo_open: bool = False) -> Callable[[str], float]:
+    """An argparse ``type``: a finite number in [lo, hi] ((lo, hi] when ``lo_open``)."""
 
     def parse(value: str) -> float:
         try:
             number = float(value)
         except ValueError:
             raise argparse.ArgumentTypeError(f"must be a number, got {value!r}") from None
-        if not (math.isfinite(number) and lo <= number <= hi):
-            raise argparse.ArgumentTypeError(f"must be in [{lo:g}, {hi:g}], got {value}")
+        above = lo < number if lo_open else lo <= number
+        if not (math.isfinite(number) and above and number <= hi):
+            lower = "(" if lo_open else "["
+            raise argparse.ArgumentTypeError(f"must be in {lower}{lo:g}, {hi:g}], got {value}")
         return number
 
     parse.__name__ = "number"

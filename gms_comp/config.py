@@ -214,7 +214,8 @@ def _coerce(value: Any, hint: Any, where: str, key: str) -> Any:
     origin = typing.get_origin(hint)
     if origin is Literal:
         choices = typing.get_args(hint)
-        if value not in choices:
+        # exactly one of them: True is not 1, nor 1.0 the choice 1
+        if not any(type(value) is type(c) and value == c for c in choices):
             raise ConfigError(
                 where, key, f"must be one of {', '.join(map(repr, choices))}, got {shown(value)}"
             )

@@ -118,9 +118,10 @@ def read_text(
 
 
 def decode_utf8(data: bytes, source: str, *, error: ErrorType = InputError) -> str:
-    """``data`` decoded as strict UTF-8; a bad byte is reported with its line."""
+    """``data`` decoded as strict UTF-8 (a leading byte-order mark, as some editors write
+    one, is dropped); a bad byte is reported with its line."""
     try:
-        text = data.decode("utf-8")
+        text = data.decode("utf-8").removeprefix("\ufeff")
     except UnicodeDecodeError as err:
         line = data[: err.start].count(b"\n") + 1
         raise error(

@@ -141,7 +141,10 @@ def check_scenario(s: Scenario) -> None:
     if s.controller.structure == "position_velocity" and _drive_loop_problem(comp):
         raise ConfigError(s.path, "compensator", _drive_loop_problem(comp))
     if comp.table_path:
-        read_table(Path(s.path).parent / comp.table_path)
+        table = Path(s.path).parent / comp.table_path
+        if not table.is_file():
+            raise ConfigError(s.path, "compensator.table_path", f"{str(table)!r} is not a file")
+        read_table(table)
     for axis in axis_scenarios(s):
         build_reference(axis)
 

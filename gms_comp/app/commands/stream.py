@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import math
 import sys
 from collections import Counter
 from dataclasses import replace
@@ -23,7 +22,13 @@ from firmware_bridge.frame_log import LOG_SUFFIXES
 from firmware_bridge.profiles import PROFILES
 from firmware_bridge.session import FeedforwardSource, Rig, stream_on
 from firmware_bridge.settings import CanConfig, load_can_config
-from gms_comp.arguments import input_file, int_in_range, output_file, suffixed_file
+from gms_comp.arguments import (
+    float_in_range,
+    input_file,
+    int_in_range,
+    output_file,
+    suffixed_file,
+)
 from gms_comp.atomic import atomic_path, write_text
 from gms_comp.config import default_config_path
 from gms_comp.errors import InputError
@@ -53,7 +58,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--channel", help="python-can channel")
     p.add_argument(
         "--duration",
-        type=float,
+        type=float_in_range(0.0, MAX_DURATION_S, lo_open=True),
         default=2.0,
         metavar="S",
         help=f"seconds of streaming, 0 < S <= {MAX_DURATION_S:g} (2)",
@@ -107,10 +112,6 @@ def run(args: argparse.Namespace) -> int:
         if v is not None
     }
     cfg = replace(cfg, **overrides)
-    if not (math.isfinite(args.duration) and 0 < args.duration <= MAX_DURATION_S):
-        raise InputError(
-            "--duration", "", f"must be in (0, {MAX_DURATION_S:g}] s, got {args.duration:g}"
-        )
     cycles = args.duration / cfg.cycle_period_s
     if cycles > MAX_STREAM_CYCLES:
         raise InputError(
@@ -120,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
             f"{cycles:.3g} cycles, more than {MAX_STREAM_CYCLES:,} (an audit record each)",
         )
     faults = [parse_fault(spec) for spec in args.fault]
+    _check_scenario(config_path)  # a config the observer cannot follow: refused before the bus
     with contextlib.ExitStack() as files:
         log = None if args.log is None else files.enter_context(atomic_path(args.log))
         # the rig opens first: another compensator on the channel is refused before the work
@@ -193,6 +195,12 @@ def summary(report: dict[str, Any], cfg: CanConfig) -> str:
     if report.get("foreign_frames"):
         lines.append(f"WARNING: {report['foreign_frames']} frames of another node with our ids")
     return "\n".join(lines)
+
+
+def _check_scenario(config_path: Path) -> None:
+    from sim.scenarios import load_scenario  # the simulator only when streaming
+
+    load_scenario(config_path)
 
 
 def gms_observer_source(config_path: Path, cfg: CanConfig, duration_s: float) -> FeedforwardSource:
