@@ -28,6 +28,7 @@ import logging
 import os
 import sys
 import traceback
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -250,24 +251,28 @@ def dask_client(
     # tracker (a process of its own, started with the cluster, whose warnings filter
     # comes from the environment) frees and reports in a warning: freed is enough.
     os.environ.setdefault("PYTHONWARNINGS", "ignore:resource_tracker:UserWarning")
-    with (
-        dask.config.set({"distributed.nanny.pre-spawn-environ": environ}),
-        LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            host=LOCAL_HOST,
-            dashboard_address=None,
-            # Dask's own log lines (a worker that loses its scheduler when Ctrl-C or
-            # SIGTERM closes the cluster logs tracebacks) stay out of the one-line report;
-            # a job's failure is reported in its row.
-            silence_logs=logging.CRITICAL,
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        if not _is_loopback(cluster.scheduler_address):  # pragma: no cover - a Dask change
-            raise GmsCompError(f"local Dask scheduler not on loopback: {cluster.scheduler_address}")
-        yield client
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
+        with warnings.catch_warnings():
+            # The scheduler's small HTTP server (health routes, on 127.0.0.1) takes another
+            # port when 8787 is in use (another cluster's) and says so: that is fine.
+            warnings.filterwarnings("ignore", "Port .* is already in use", UserWarning)
+            cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                host=LOCAL_HOST,
+                dashboard_address=None,
+                # Dask's own log lines (a worker that loses its scheduler when Ctrl-C or
+                # SIGTERM closes the cluster logs tracebacks) stay out of the one-line
+                # report; a job's failure is reported in its row.
+                silence_logs=logging.CRITICAL,
+            )
+        with cluster, Client(cluster) as client:
+            if not _is_loopback(cluster.scheduler_address):  # pragma: no cover - Dask change
+                raise GmsCompError(
+                    f"local Dask scheduler not on loopback: {cluster.scheduler_address}"
+                )
+            yield client
 
 
 def run_jobs(
