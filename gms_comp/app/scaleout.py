@@ -117,8 +117,9 @@ class TlsFiles:
 class ScaleoutConfig:
     """The optional ``[scaleout]`` section: where to run and how to reach the scheduler.
 
-    Paths are relative to the file that holds the section; command-line options
-    override them.
+    Read only from the user's own config named with ``--cluster-config`` (a sweep file's
+    is refused). Paths are relative to the file that holds the section; command-line
+    options override them.
     """
 
     scheduler: str = ""
