@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from gms_comp.app.cli import main
@@ -52,7 +53,7 @@ def test_an_output_that_is_an_input_by_any_name_is_refused(tmp_path: Path) -> No
 
 
 def _table(level: float) -> GmsTable:
-    params = GmsParams(stiffness_N_per_m=[1e5], limit_N=[level], slip_level=1.1)
+    params = GmsParams(stiffness_N_per_m=np.array([1e5]), limit_N=np.array([level]), slip_level=1.1)
     return GmsTable(params, "t.csv", "0" * 64, Fidelity(0.01, 0.02))
 
 

@@ -19,6 +19,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -63,7 +64,9 @@ def _one_line(err: Exception, source: str, key: str) -> None:
 
 GOOD_TABLE = table_to_dict(
     GmsTable(
-        GmsParams(stiffness_N_per_m=[2e5, 5e4], limit_N=[0.2, 0.1], slip_level=1.2),
+        GmsParams(
+            stiffness_N_per_m=np.array([2e5, 5e4]), limit_N=np.array([0.2, 0.1]), slip_level=1.2
+        ),
         source_config="c.toml",
         source_sha256="0" * 64,
         fidelity=Fidelity(0.01, 0.03),
@@ -375,6 +378,8 @@ def test_a_command_line_number_is_bounded_when_parsed(
     inside = st.integers(lo, hi) if integer else st.floats(lo, hi, exclude_min=lo_open)
     good = data.draw(inside, label="inside")
     assert _parse(tmp_path, [*before, flag, repr(good)]) == 0
+    below: st.SearchStrategy[Any]
+    above: st.SearchStrategy[Any]
     if integer:
         below, above = st.integers(max_value=lo - 1), st.integers(min_value=hi + 1)
     else:
