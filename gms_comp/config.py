@@ -111,7 +111,12 @@ class FieldRange:
     def __str__(self) -> str:
         lower = "(" if self.lo_open else "["
         upper = ")" if self.hi_open else "]"
-        return f"{lower}{self.lo:g}, {self.hi:g}{upper}"
+        return f"{lower}{_bound(self.lo)}, {_bound(self.hi)}{upper}"
+
+
+def _bound(x: float) -> str:
+    """A bound as written: an integer in full (a seed's 4294967295), a float with :g."""
+    return str(x) if isinstance(x, int) else f"{x:g}"
 
 
 def field_range(f: dataclasses.Field[Any]) -> FieldRange | None:

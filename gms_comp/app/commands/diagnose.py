@@ -23,7 +23,7 @@ from gms_comp.app.report_set import input_record, write_report_set
 from gms_comp.app.scaleout import add_cluster_arguments, cli_client
 from gms_comp.arguments import input_file, output_file, replaced_dir
 from gms_comp.atomic import SET_MANIFEST, write_text
-from gms_comp.config import config_hash, read_toml
+from gms_comp.config import config_hash, default_config_path, read_toml
 from gms_comp.errors import GmsCompError
 from gms_comp.gms import GmsParams
 from gms_comp.measured.diagnosis import emps
@@ -110,7 +110,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--closed-loop",
         nargs="?",
-        const="",
+        const=default_config_path(),  # a Path: argparse passes it on as it is
         type=input_file,
         metavar="SCENARIO",
         help=(
@@ -153,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
             closed_loop_gain,  # the simulated axis when asked
         )
 
-        doc["closed_loop"] = closed_loop_gain(result, args.closed_loop or None)
+        doc["closed_loop"] = closed_loop_gain(result, args.closed_loop)
     written: list[str] = []
     if args.report:
         files = write_report_set(
