@@ -61,6 +61,13 @@ def run(args: argparse.Namespace) -> int:
 def _print_summary(points: list[dict[str, Any]], out: Path) -> None:
     ok = [p for p in points if p["status"] == "ok"]
     print(f"{len(ok)}/{len(points)} tables in {out} (manifest: {out / 'manifest.json'})")
+    resumed = sum(1 for p in points if p.get("resumed"))
+    changed = sum(1 for p in points if "note" in p)
+    if resumed or changed:
+        print(
+            f"{resumed} resumed (their whole config unchanged), "
+            f"{changed} recomputed (config changed since their table was made)"
+        )
     if ok:
         worst = max(ok, key=lambda p: p["fidelity"]["rms_rel"])
         print(f"worst fidelity: rms_rel {worst['fidelity']['rms_rel']:.2%} at {worst['values']}")
