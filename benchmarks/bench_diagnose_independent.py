@@ -42,8 +42,8 @@ from indepgen import (
     write_csv,
 )
 
+from gms_comp.arguments import output_file
 from gms_comp.atomic import write_text
-from gms_comp.validation import output_file
 
 FIRST_SEED = 101
 

@@ -4,16 +4,24 @@ A file is written to a uniquely named temporary file in the target's own folder,
 flushed and fsync'ed, then moved over the target with :func:`os.replace`. A run that
 fails or is killed at any point leaves the earlier file, if any, as it was, and no two
 writers share a temporary name.
+
+Several files that belong together (a diagnosis report and its table) are written as one
+set (:func:`replaced_folder`): into a new hidden folder renamed into place at the end, the
+old set moved aside before anything of the new one is written, so that a run killed at any
+moment never leaves a new file beside an old set that looks complete.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+
+from gms_comp.errors import InputError
 
 
 @contextlib.contextmanager
@@ -70,9 +78,13 @@ def _mode_for(target: Path) -> int:
         return stat.S_IMODE(target.stat().st_mode)
     except OSError:
         pass
+    return 0o666 & ~_umask()
+
+
+def _umask() -> int:
     mask = os.umask(0o022)
     os.umask(mask)
-    return 0o666 & ~mask
+    return mask
 
 
 def _fsync_dir(folder: Path) -> None:
@@ -83,3 +95,66 @@ def _fsync_dir(folder: Path) -> None:
             os.fsync(fd)
         finally:
             os.close(fd)
+
+
+#: The file a set of files is vouched for by, written last (:func:`replaced_folder`).
+SET_MANIFEST = "manifest.json"
+
+
+@contextlib.contextmanager
+def replaced_folder(path: str | os.PathLike[str], marker: str = SET_MANIFEST) -> Iterator[Path]:
+    """Write a folder as one set: yield a new empty folder; on success it becomes ``path``.
+
+    Before the body runs, the folder at ``path`` (if any) is moved aside to a hidden
+    ``.NAME.*.old`` beside it, so that whatever the body writes elsewhere (a table named
+    on the command line) never sits beside the old set; on success the new folder is
+    renamed to ``path`` and the old one removed; on an exception the new one is removed
+    and the old one put back. A kill leaves ``path`` absent or complete (and the hidden
+    folders behind, removed by the next run that completes). The body writes ``marker``
+    (the set's manifest) last.
+
+    Raises
+    ------
+    InputError
+        When ``path`` holds files but no ``marker``: it is not a set this function wrote,
+        and is not replaced.
+    """
+    target = Path(path)
+    check_replaceable(target, marker)
+    parent = target.parent
+    parent.mkdir(parents=True, exist_ok=True)
+    new = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".partial", dir=parent))
+    with contextlib.suppress(OSError):  # mkdtemp's 0700, as a plain mkdir would make it
+        os.chmod(new, 0o777 & ~_umask())
+    old: Path | None = None
+    try:
+        if target.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=parent))
+            os.rename(target, old)  # onto the empty folder just made: one rename
+        yield new
+        os.rename(new, target)
+        _fsync_dir(parent)
+        for stale in (
+            *parent.glob(f".{target.name}.*.partial"),
+            *parent.glob(f".{target.name}.*.old"),
+        ):
+            if stale != old:  # what killed runs left behind: the new set is complete now
+                shutil.rmtree(stale, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(new, ignore_errors=True)
+        if old is not None and not target.exists():
+            os.rename(old, target)
+            old = None
+        raise
+    finally:
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+
+
+def check_replaceable(folder: Path, marker: str = SET_MANIFEST) -> None:
+    """Refuse to replace ``folder`` when it holds files but not ``marker``."""
+    if folder.is_dir() and any(folder.iterdir()) and not (folder / marker).is_file():
+        raise InputError(
+            str(folder), "", f"holds files but no {marker}: not a set gms-comp wrote, so it is "
+            "not replaced; give a new or empty folder",
+        )  # fmt: skip

@@ -3,7 +3,7 @@
 Every section of a config file maps to a frozen dataclass whose field names
 carry their units (``ball_radius_m``, ``normal_load_N``). Values are SI.
 A field without a default is required. A field may carry a check in its
-metadata (``field(metadata=positive())``); a dataclass may add cross-field
+metadata (``field(metadata=positive(1e3))``); a dataclass may add cross-field
 checks through a ``problems()`` method returning ``(key, reason)`` pairs.
 
 Sections are owned by the layer that uses them; :data:`KNOWN_SECTIONS` lists
@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any, Literal, TypeVar
 
 from gms_comp.errors import ConfigError
-from gms_comp.validation import read_toml_document
+from gms_comp.validation import finite_float, is_number, read_toml_document, shown
 
 KNOWN_SECTIONS = frozenset(
     {
@@ -48,21 +48,18 @@ Check = Callable[[Any], "str | None"]
 T = TypeVar("T")
 
 
-def positive(*, max_items: int | None = None) -> dict[str, Any]:
-    """Field metadata: the value must be finite and > 0 (at most ``max_items`` entries)."""
-    return {
-        "check": lambda v: None if _all(v, lambda x: x > 0) else "must be > 0",
-        "range": (0.0, math.inf, "(", ")"),
-        "max_items": max_items,
-    }
+def positive(hi: float, *, max_items: int | None = None) -> dict[str, Any]:
+    """Field metadata: 0 < value <= ``hi`` (at most ``max_items`` entries).
+
+    Every number a config holds has a finite range, so that no duration, rate or count
+    read from a file can overflow or allocate without bound; :func:`field_range` reads it.
+    """
+    return in_range(0.0, hi, lo_open=True, max_items=max_items)
 
 
-def non_negative() -> dict[str, Any]:
-    """Field metadata: the value must be finite and >= 0."""
-    return {
-        "check": lambda v: None if _all(v, lambda x: x >= 0) else "must be >= 0",
-        "range": (0.0, math.inf, "[", ")"),
-    }
+def non_negative(hi: float) -> dict[str, Any]:
+    """Field metadata: 0 <= value <= ``hi``."""
+    return in_range(0.0, hi)
 
 
 def in_range(
@@ -76,25 +73,68 @@ def in_range(
     """Field metadata: lo <= value <= hi (``lo_open``/``hi_open`` make a bound strict).
 
     ``max_items`` caps the number of entries of an array field; it is checked before
-    the entries are.
+    the entries are. The bounds are the field's declared range (:class:`FieldRange`),
+    which ``gms-comp config``, docs/limits.md and the property tests read.
     """
-    lower = "(" if lo_open else "["
-    upper = ")" if hi_open else "]"
-
-    def inside(x: float) -> bool:
-        above = lo < x if lo_open else lo <= x
-        below = x < hi if hi_open else x <= hi
-        return above and below
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+        raise ValueError(f"a field's range must be finite, got [{lo}, {hi}]")  # a code error
+    declared = FieldRange(lo, hi, lo_open, hi_open, max_items)
 
     def check(v: Any) -> str | None:
-        return None if _all(v, inside) else f"must be in {lower}{lo:g}, {hi:g}{upper}"
+        return None if _all(v, declared.contains) else f"must be in {declared}"
 
-    return {"check": check, "range": (lo, hi, lower, upper), "max_items": max_items}
+    lower = "(" if lo_open else "["
+    upper = ")" if hi_open else "]"
+    return {
+        "check": check,
+        "range": (lo, hi, lower, upper),
+        "bounds": declared,
+        "max_items": max_items,
+    }
+
+
+@dataclasses.dataclass(frozen=True)
+class FieldRange:
+    """The declared range of a numeric config field (and of its entries, for an array)."""
+
+    lo: float
+    hi: float
+    lo_open: bool = False
+    hi_open: bool = False
+    max_items: int | None = None
+
+    def contains(self, x: float) -> bool:
+        """Whether the number ``x`` (an int of any size, or a finite float) is inside."""
+        above = self.lo < x if self.lo_open else self.lo <= x
+        below = x < self.hi if self.hi_open else x <= self.hi
+        return above and below
+
+    def __str__(self) -> str:
+        lower = "(" if self.lo_open else "["
+        upper = ")" if self.hi_open else "]"
+        return f"{lower}{_bound(self.lo)}, {_bound(self.hi)}{upper}"
+
+
+def _bound(x: float) -> str:
+    """A bound as written: an integer in full (a seed's 4294967295), a float with :g."""
+    return str(x) if isinstance(x, int) else f"{x:g}"
+
+
+def field_range(f: dataclasses.Field[Any]) -> FieldRange | None:
+    """The declared range of a config dataclass field, None for one without (text,
+    booleans, choices)."""
+    bounds = f.metadata.get("bounds")
+    return bounds if isinstance(bounds, FieldRange) else None
 
 
 def _all(value: Any, pred: Callable[[float], bool]) -> bool:
     items = value if isinstance(value, tuple) else (value,)
-    return all(math.isfinite(x) and pred(x) for x in items)
+    return all(_finite(x) and pred(x) for x in items)
+
+
+def _finite(x: Any) -> bool:
+    """An int of any size is finite (``math.isfinite`` overflows on a 400-digit one)."""
+    return isinstance(x, int) or math.isfinite(x)
 
 
 def default_config_path() -> Path:
@@ -147,12 +187,19 @@ def parse_section(doc: Mapping[str, Any], path: str | Path, section: str, cls: t
             raise ConfigError(
                 where, key, f"{len(table[name])} entries, more than the {cap} allowed"
             )
-        value = _coerce(table[name], hints[name], where, key)
+        raw = table[name]
         check = f.metadata.get("check")
+        # The range first, on the value as written (an int of any size compares exactly;
+        # converting a 400-digit one to float would overflow), then the type.
+        if check is not None and _numeric(raw):
+            reason = check(tuple(raw) if isinstance(raw, list) else raw)
+            if reason:
+                raise ConfigError(where, key, f"{reason}, got {shown(raw)}")
+        value = _coerce(raw, hints[name], where, key)
         if check is not None:
             reason = check(value)
             if reason:
-                raise ConfigError(where, key, f"{reason}, got {table[name]!r}")
+                raise ConfigError(where, key, f"{reason}, got {shown(raw)}")
         values[name] = value
     obj = cls(**values)
     problems = getattr(obj, "problems", None)
@@ -162,14 +209,21 @@ def parse_section(doc: Mapping[str, Any], path: str | Path, section: str, cls: t
     return obj
 
 
+def _numeric(raw: Any) -> bool:
+    """Whether ``raw`` is a number or a non-empty array of numbers (booleans are not)."""
+    items = raw if isinstance(raw, list) and raw else [raw]
+    return all(is_number(x) for x in items)
+
+
 def _coerce(value: Any, hint: Any, where: str, key: str) -> Any:
     """Check ``value`` against a type hint; ints are accepted where floats are expected."""
     origin = typing.get_origin(hint)
     if origin is Literal:
         choices = typing.get_args(hint)
-        if value not in choices:
+        # exactly one of them: True is not 1, nor 1.0 the choice 1
+        if not any(type(value) is type(c) and value == c for c in choices):
             raise ConfigError(
-                where, key, f"must be one of {', '.join(map(repr, choices))}, got {value!r}"
+                where, key, f"must be one of {', '.join(map(repr, choices))}, got {shown(value)}"
             )
         return value
     if origin in (typing.Union, types.UnionType):
@@ -185,26 +239,31 @@ def _coerce(value: Any, hint: Any, where: str, key: str) -> Any:
     if origin is tuple:
         (item, _ellipsis) = typing.get_args(hint)
         if not isinstance(value, list) or not value:
-            raise ConfigError(where, key, f"must be a non-empty array, got {value!r}")
+            raise ConfigError(where, key, f"must be a non-empty array, got {shown(value)}")
         return tuple(_coerce(v, item, f"{where}", f"{key}[{i}]") for i, v in enumerate(value))
     if hint is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(where, key, f"must be a number, got {type(value).__name__} {value!r}")
-        if not math.isfinite(value):
-            raise ConfigError(where, key, f"must be finite, got {value!r}")
-        return float(value)
+            raise ConfigError(
+                where, key, f"must be a number, got {type(value).__name__} {shown(value)}"
+            )
+        number = finite_float(value)
+        if number is None:
+            raise ConfigError(where, key, f"must be a finite number, got {shown(value)}")
+        return number
     if hint is int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise ConfigError(
-                where, key, f"must be an integer, got {type(value).__name__} {value!r}"
+                where, key, f"must be an integer, got {type(value).__name__} {shown(value)}"
             )
         return value
     if hint is bool:
         if not isinstance(value, bool):
-            raise ConfigError(where, key, f"must be true or false, got {value!r}")
+            raise ConfigError(where, key, f"must be true or false, got {shown(value)}")
         return value
     if hint is str:
         if not isinstance(value, str):
-            raise ConfigError(where, key, f"must be a string, got {type(value).__name__} {value!r}")
+            raise ConfigError(
+                where, key, f"must be a string, got {type(value).__name__} {shown(value)}"
+            )
         return value
     raise TypeError(f"unsupported config field type {hint!r} for {key}")  # a programming error

@@ -10,17 +10,18 @@ decoded as strict UTF-8, its bracket nesting counted before a parser recurses in
 and element, sample, point and load counts are compared with the caps below before any
 array is made. docs/limits.md lists every bound (a test keeps it in step with the code).
 
-The command-line helpers here check output paths when the arguments are parsed, so that
-a run never computes for minutes and then fails to write its result.
+Numbers are checked before they are converted (:func:`finite_float`: a 400-digit integer
+is refused, not overflowed), JSON documents field by field (:class:`JsonReader`). Values
+and paths on the command line are checked in :mod:`gms_comp.arguments`.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
 import re
+import sys
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -51,8 +52,43 @@ MAX_FAMILY_LOADS = 64
 MAX_SWEEP_POINTS = 10_000
 #: Worker processes of a local Dask cluster.
 MAX_WORKERS = 256
+#: Random seeds (config keys and ``--seed``): 0 to 2**32 - 1, what every numpy generator
+#: takes (a negative seed is refused, not passed on to fail inside the run).
+MAX_SEED = 2**32 - 1
 
 ErrorType = Callable[[str, str, str], InputError]
+
+#: Characters of a bad value quoted in a refusal (a longer one is cut, its length said).
+MAX_SHOWN_CHARS = 60
+
+
+def shown(value: Any) -> str:
+    """``repr(value)`` for a one-line refusal, cut to :data:`MAX_SHOWN_CHARS` (a
+    400-digit integer or a 1 MB string is named, not printed)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 200:
+        return f"an integer of {len(str(abs(value)))} digits"
+    text = repr(value)
+    if len(text) > MAX_SHOWN_CHARS:
+        return f"{text[: MAX_SHOWN_CHARS - 3]}... ({len(text)} characters)"
+    return text
+
+
+def is_number(value: Any) -> bool:
+    """Whether ``value`` is an int or a float (a boolean is not a number)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def finite_float(value: Any) -> float | None:
+    """``value`` as a finite float, or None: not a number, NaN, infinite, or an integer
+    beyond the float range (checked before converting: ``float(10**400)`` overflows)."""
+    if not is_number(value):
+        return None
+    if isinstance(value, int):
+        return float(value) if abs(value) <= _FLOAT_MAX_INT else None
+    return float(value) if math.isfinite(value) else None
+
+
+_FLOAT_MAX_INT = int(sys.float_info.max)
 
 
 def read_text(
@@ -82,9 +118,10 @@ def read_text(
 
 
 def decode_utf8(data: bytes, source: str, *, error: ErrorType = InputError) -> str:
-    """``data`` decoded as strict UTF-8; a bad byte is reported with its line."""
+    """``data`` decoded as strict UTF-8 (a leading byte-order mark, as some editors write
+    one, is dropped); a bad byte is reported with its line."""
     try:
-        text = data.decode("utf-8")
+        text = data.decode("utf-8").removeprefix("\ufeff")
     except UnicodeDecodeError as err:
         line = data[: err.start].count(b"\n") + 1
         raise error(
@@ -180,93 +217,55 @@ def check_count(
         raise error(source, field, f"{count} {what}, more than the {cap} allowed")
 
 
-# --- command-line value types ----------------------------------------------------------
+class JsonReader:
+    """Field accessors for a parsed JSON document, each refusal one line naming the source
+    and the field's dotted path (``velocity_level.slip_level``, ``limit_N[3]``).
 
+    Numbers are checked without converting first (a 400-digit integer is refused, not
+    overflowed), lists are measured before their entries are read.
+    """
 
-def int_in_range(lo: int, hi: int) -> Callable[[str], int]:
-    """An argparse ``type``: an integer in [lo, hi]."""
+    def __init__(self, source: str, error: ErrorType = InputError) -> None:
+        self.source = source
+        self._error = error
 
-    def parse(value: str) -> int:
-        try:
-            number = int(value)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be an integer, got {value!r}") from None
-        if not lo <= number <= hi:
-            raise argparse.ArgumentTypeError(f"must be in [{lo}, {hi}], got {number}")
+    def error(self, key: str, reason: str) -> InputError:
+        """The refusal of field ``key``."""
+        return self._error(self.source, key, reason)
+
+    def get(self, obj: Any, key: str) -> Any:
+        """``obj[last part of key]``; a missing key is reported with its full name."""
+        name = key.rsplit(".", 1)[-1]
+        if not isinstance(obj, dict):
+            parent = key.rsplit(".", 1)[0]
+            raise self.error(parent, "must be a JSON object")
+        if name not in obj:
+            raise self.error(key, "missing")
+        return obj[name]
+
+    def number(self, obj: Any, key: str, positive: bool, hi: float) -> float:
+        """``obj``'s field ``key``: see :meth:`check_number`."""
+        return self.check_number(self.get(obj, key), key, positive, hi)
+
+    def check_number(self, value: Any, key: str, positive: bool, hi: float) -> float:
+        """A finite number, > 0 when ``positive`` else >= 0, and <= ``hi``."""
+        if not is_number(value):
+            raise self.error(key, f"must be a number, got {shown(value)}")
+        number = finite_float(value)
+        if number is None or (number <= 0 if positive else number < 0) or number > hi:
+            lower = "(0" if positive else "[0"
+            raise self.error(key, f"must be in {lower}, {hi:g}], got {shown(value)}")
         return number
 
-    parse.__name__ = "integer"
-    return parse
+    def vector(self, value: Any, key: str, n: int | None, positive: bool, hi: float) -> list[float]:
+        """A list of ``n`` numbers (any non-zero length when ``n`` is None)."""
+        if not isinstance(value, list) or not value or (n is not None and len(value) != n):
+            raise self.error(key, f"must be a list of {n or 'some'} numbers")
+        return [self.check_number(v, f"{key}[{i}]", positive, hi) for i, v in enumerate(value)]
 
-
-def float_in_range(lo: float, hi: float) -> Callable[[str], float]:
-    """An argparse ``type``: a finite number in [lo, hi]."""
-
-    def parse(value: str) -> float:
-        try:
-            number = float(value)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be a number, got {value!r}") from None
-        if not (math.isfinite(number) and lo <= number <= hi):
-            raise argparse.ArgumentTypeError(f"must be in [{lo:g}, {hi:g}], got {value}")
-        return number
-
-    parse.__name__ = "number"
-    return parse
-
-
-_ADDRESS = re.compile(r"^(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+)(:(\d{1,5}))?$")
-
-
-def scheduler_address(value: str) -> str:
-    """An argparse ``type``: a Dask scheduler address ``tcp://host:port`` or ``tls://...``."""
-    found = _ADDRESS.match(value.strip())
-    if found is None:
-        raise argparse.ArgumentTypeError(
-            f"{value!r} is not a scheduler address (expected tls://HOST:PORT or tcp://HOST:PORT)"
-        )
-    port = found.group(4)
-    if port is not None and not 0 < int(port) < 65536:
-        raise argparse.ArgumentTypeError(f"{value!r}: port must be in [1, 65535]")
-    return value.strip()
-
-
-def output_file(value: str) -> Path:
-    """An argparse ``type`` for a file to be written: its folder exists and is writable,
-    and the path is not a folder."""
-    path = Path(value)
-    if value == "" or path.is_dir():
-        raise argparse.ArgumentTypeError(f"{value!r} is a folder, expected a file name")
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise argparse.ArgumentTypeError(f"{value!r}: folder {str(folder)!r} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise argparse.ArgumentTypeError(f"{value!r}: folder {str(folder)!r} is not writable")
-    return path
-
-
-def output_dir(value: str) -> Path:
-    """An argparse ``type`` for a folder to write into: it exists as a folder or can be
-    created (its nearest existing ancestor is a writable folder)."""
-    path = Path(value)
-    if value == "":
-        raise argparse.ArgumentTypeError("empty folder name")
-    if path.exists() and not path.is_dir():
-        raise argparse.ArgumentTypeError(f"{value!r} is a file, expected a folder")
-    ancestor = path
-    while not ancestor.exists():
-        ancestor = ancestor.parent
-    if not ancestor.is_dir():
-        raise argparse.ArgumentTypeError(f"{value!r}: {str(ancestor)!r} is a file")
-    if not os.access(ancestor, os.W_OK):
-        raise argparse.ArgumentTypeError(f"{value!r}: {str(ancestor)!r} is not writable")
-    return path
-
-
-def input_file(value: str) -> Path:
-    """An argparse ``type`` for a file to be read: it exists and is a file."""
-    path = Path(value)
-    if not path.is_file():
-        what = "is a folder" if path.is_dir() else "does not exist"
-        raise argparse.ArgumentTypeError(f"{value!r} {what}")
-    return path
+    def string(self, obj: Any, key: str) -> str:
+        """``obj``'s field ``key``, a string."""
+        value = self.get(obj, key)
+        if not isinstance(value, str):
+            raise self.error(key, f"must be a string, got {shown(value)}")
+        return value

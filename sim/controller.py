@@ -47,10 +47,10 @@ class ControllerConfig:
     """The ``[controller]`` section."""
 
     servo_rate_Hz: float = field(default=4000.0, metadata=in_range(100.0, 1e5))
-    position_bandwidth_Hz: float = field(default=30.0, metadata=positive())
-    velocity_bandwidth_Hz: float = field(default=150.0, metadata=positive())
-    integral_corner_Hz: float = field(default=30.0, metadata=positive())
-    velocity_filter_Hz: float = field(default=1000.0, metadata=positive())
+    position_bandwidth_Hz: float = field(default=30.0, metadata=positive(5e4))
+    velocity_bandwidth_Hz: float = field(default=150.0, metadata=positive(5e4))
+    integral_corner_Hz: float = field(default=30.0, metadata=positive(5e4))
+    velocity_filter_Hz: float = field(default=1000.0, metadata=positive(5e4))
     discretization: Literal["tustin", "zoh", "foh", "backward_diff"] = "tustin"
     acceleration_feedforward: bool = True
     acceleration_lead_cycles: int = field(default=1, metadata=in_range(0, 100))
@@ -58,12 +58,14 @@ class ControllerConfig:
     # EMPS benchmark's; defaults are its gains): u = kv (kp (qg - q) - d/dt FIR(q)),
     # delayed, saturated, times the drive gain.
     structure: Literal["cascade", "position_velocity"] = "cascade"
-    kp_per_s: float = field(default=160.18, metadata=positive())
-    kv_command_s_per_m: float = field(default=243.45, metadata=positive())
-    drive_gain_N_per_command: float = field(default=35.15065188248547, metadata=positive())
-    command_limit: float = field(default=10.0, metadata=positive())
+    kp_per_s: float = field(default=160.18, metadata=positive(1e5))
+    kv_command_s_per_m: float = field(default=243.45, metadata=positive(1e7))
+    drive_gain_N_per_command: float = field(default=35.15065188248547, metadata=positive(1e6))
+    command_limit: float = field(default=10.0, metadata=positive(1e6))
     command_delay_cycles: int = field(default=1, metadata=in_range(0, 100))
-    velocity_fir: tuple[float, ...] = (0.5, 0.5)
+    velocity_fir: tuple[float, ...] = field(
+        default=(0.5, 0.5), metadata=in_range(-10.0, 10.0, max_items=8)
+    )
 
     @property
     def servo_period_s(self) -> float:

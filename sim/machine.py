@@ -25,6 +25,7 @@ from gms_comp.config import in_range, parse_section, positive, read_toml
 from gms_comp.errors import ConfigError
 from gms_comp.runtime import effects as fx
 from gms_comp.runtime.effects.stream import ExtensionStream
+from gms_comp.validation import MAX_SEED
 from sim.controller import CascadeController, design
 from sim.plant import LinearMotorAxis, ScaledFriction
 from sim.scenarios import Scenario, ball_set_friction, load_scenario
@@ -45,8 +46,8 @@ class MachineConfig:
     current_noise_A: float = field(default=0.005, metadata=in_range(0.0, 10.0))
     encoder_resolution_m: float = field(default=1e-9, metadata=in_range(0.0, 1e-3))
     force_constant_N_per_A: float = field(default=60.0, metadata=in_range(1e-2, 1e4))
-    max_following_error_m: float = field(default=2e-3, metadata=positive())
-    noise_seed: int = field(default=0, metadata=in_range(0, 2**31 - 1))
+    max_following_error_m: float = field(default=2e-3, metadata=positive(1.0))
+    noise_seed: int = field(default=0, metadata=in_range(0, MAX_SEED))
 
     def problems(self) -> list[tuple[str, str]]:
         """`effect` is a catalogue name or "none"."""

@@ -32,6 +32,7 @@ from gms_comp.arrays import FloatArray
 from gms_comp.config import in_range, non_negative, positive
 from gms_comp.errors import ScenarioError
 from gms_comp.runtime.observer import ForceModel
+from gms_comp.validation import MAX_SEED
 from sim.kernels import Pack, truth_force, truth_pack, zero_truth
 
 
@@ -79,13 +80,13 @@ class PlantConfig:
     moving_mass_kg: float = field(default=30.0, metadata=in_range(1e-3, 1e4))
     force_constant_N_per_A: float = field(default=60.0, metadata=in_range(1e-2, 1e4))
     current_limit_A: float = field(default=10.0, metadata=in_range(1e-3, 1e3))
-    current_loop_bandwidth_Hz: float = field(default=1500.0, metadata=positive())
+    current_loop_bandwidth_Hz: float = field(default=1500.0, metadata=positive(1e5))
     current_loop_order: Literal[1, 2] = 1
     current_loop_damping: float = field(default=0.7, metadata=in_range(0.05, 5.0))
-    encoder_resolution_m: float = field(default=1e-9, metadata=non_negative())
-    position_noise_m: float = field(default=1e-9, metadata=non_negative())
-    noise_seed: int = 0
-    ball_set_count: float = field(default=40.0, metadata=non_negative())
+    encoder_resolution_m: float = field(default=1e-9, metadata=non_negative(1e-3))
+    position_noise_m: float = field(default=1e-9, metadata=non_negative(1e-3))
+    noise_seed: int = field(default=0, metadata=in_range(0, MAX_SEED))
+    ball_set_count: float = field(default=40.0, metadata=non_negative(1e4))
     substeps: int = field(default=1, metadata=in_range(1, 64))
 
 

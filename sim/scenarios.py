@@ -24,8 +24,9 @@ from numpy.typing import NDArray
 
 from gms_comp.arrays import FloatArray
 from gms_comp.config import default_config_path, in_range, parse_section, positive, read_toml
-from gms_comp.errors import ScenarioError
+from gms_comp.errors import ConfigError, ScenarioError
 from gms_comp.physics.config import BallConfig, load_ball_config
+from gms_comp.physics.profiles import seed_fig7_profile
 from gms_comp.physics.transient import BallSetFriction
 from gms_comp.runtime.observer import (
     CompensatorConfig,
@@ -43,7 +44,11 @@ from sim.position_loop import PositionLoop, RigidAxisModel, simulate_loop
 from sim.strategies import REGISTRY, STRATEGIES, Calibration, StrategyInputs, calibrate
 from sim.trajectories import Reference, circle, reversals, sine, step_stop, stops
 
+#: Duration of a simulated scenario (its motion, smoothing windows and final dwell), s.
 MAX_DURATION_S = 600.0
+#: Servo cycles of a simulated scenario (duration x servo rate), checked before any array
+#: of the run is made: every cycle costs a few dozen bytes per strategy and axis.
+MAX_SCENARIO_CYCLES = 4_000_000
 
 
 @dataclass(frozen=True)
@@ -54,18 +59,20 @@ class ScenarioConfig:
     circle_axis: Literal["x", "y", "xy"] = "x"
     radius_m: float = field(default=0.01, metadata=in_range(1e-6, 1.0))
     feed_m_s: float = field(default=0.02, metadata=in_range(1e-6, 10.0))
-    revolutions: float = field(default=1.0, metadata=positive())
-    amplitude_m: float = field(default=1e-3, metadata=positive())
+    revolutions: float = field(default=1.0, metadata=positive(1e3))
+    amplitude_m: float = field(default=1e-3, metadata=positive(1.0))
     frequency_Hz: float = field(default=2.0, metadata=in_range(1e-3, 1e3))
-    periods: float = field(default=2.0, metadata=positive())
-    acceleration_window_s: float = field(default=0.01, metadata=positive())
-    jerk_window_s: float = field(default=0.005, metadata=positive())
-    dwell_s: float = field(default=0.2, metadata=positive())
+    periods: float = field(default=2.0, metadata=positive(1e5))
+    acceleration_window_s: float = field(default=0.01, metadata=positive(10.0))
+    jerk_window_s: float = field(default=0.005, metadata=positive(10.0))
+    dwell_s: float = field(default=0.2, metadata=positive(60.0))
     transport_delay_cycles: int = field(default=1, metadata=in_range(0, 1000))
-    reversal_window_s: float = field(default=0.15, metadata=positive())
-    min_stop_s: float = field(default=0.01, metadata=positive())
-    calibration_travel_m: float = field(default=1e-3, metadata=positive())
-    calibration_velocities_m_s: tuple[float, ...] = field(default=(0.01, 0.05), metadata=positive())
+    reversal_window_s: float = field(default=0.15, metadata=positive(10.0))
+    min_stop_s: float = field(default=0.01, metadata=positive(10.0))
+    calibration_travel_m: float = field(default=1e-3, metadata=positive(1.0))
+    calibration_velocities_m_s: tuple[float, ...] = field(
+        default=(0.01, 0.05), metadata=positive(10.0, max_items=8)
+    )
 
     def problems(self) -> list[tuple[str, str]]:
         """`calibration_velocities_m_s` holds two distinct speeds."""
@@ -88,10 +95,11 @@ class Scenario:
 
 
 def load_scenario(path: str | Path | None = None) -> Scenario:
-    """Read the physics and simulation sections of ``path`` (default: Table 1)."""
+    """Read the physics and simulation sections of ``path`` (default: Table 1) and check
+    them together (:func:`check_scenario`), before any run is set up."""
     p = Path(path) if path is not None else default_config_path()
     doc = read_toml(p)
-    return Scenario(
+    s = Scenario(
         path=str(p),
         ball=load_ball_config(p),
         plant=parse_section(doc, p, "plant", PlantConfig),
@@ -99,6 +107,61 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
         scenario=parse_section(doc, p, "scenario", ScenarioConfig),
         compensator=parse_section(doc, p, "compensator", CompensatorConfig),
     )
+    check_scenario(s)
+    return s
+
+
+def scenario_duration_s(c: ScenarioConfig) -> float:
+    """How long the scenario's reference lasts: its motion, the smoothing windows and the
+    final dwell (computed from the config, before the reference is made)."""
+    motion_s = {
+        "circle": c.revolutions * 2 * math.pi * c.radius_m / c.feed_m_s,
+        "sine": c.periods / c.frequency_Hz,
+        "step_stop": float(seed_fig7_profile(1e3)[0][-1]),
+    }[c.trajectory]
+    return motion_s + c.acceleration_window_s + c.jerk_window_s + c.dwell_s
+
+
+def check_scenario(s: Scenario) -> None:
+    """Refuse a scenario no run could make: one that lasts too long or has too many
+    cycles (checked from the config, before anything is allocated), a trajectory the axis
+    cannot follow, a compensator the drive-command loop does not take, a table file
+    that is not a table. Every command that runs a scenario calls it through
+    :func:`load_scenario`, and ``gms-comp config`` does, so they agree."""
+    c = s.scenario
+    duration_s = scenario_duration_s(c)
+    cycles = duration_s * s.controller.servo_rate_Hz
+    if duration_s > MAX_DURATION_S:
+        raise ConfigError(
+            s.path, "scenario", f"lasts {duration_s:.4g} s, more than {MAX_DURATION_S:.0f} s"
+        )
+    if cycles > MAX_SCENARIO_CYCLES:
+        raise ConfigError(
+            s.path,
+            "scenario",
+            f"{duration_s:.4g} s at {s.controller.servo_rate_Hz:g} Hz is {cycles:.3g} servo "
+            f"cycles, more than {MAX_SCENARIO_CYCLES:,}",
+        )
+    comp = s.compensator
+    if s.controller.structure == "position_velocity" and _drive_loop_problem(comp):
+        raise ConfigError(s.path, "compensator", _drive_loop_problem(comp))
+    if comp.table_path:
+        table = Path(s.path).parent / comp.table_path
+        if not table.is_file():
+            raise ConfigError(s.path, "compensator.table_path", f"{str(table)!r} is not a file")
+        read_table(table)
+    for axis in axis_scenarios(s):
+        build_reference(axis)
+
+
+def _drive_loop_problem(comp: CompensatorConfig) -> str:
+    """Why the drive-command loop cannot take this compensator ("" when it can)."""
+    if comp.feed != "reference" or comp.adaptation_rate_per_s:
+        return (
+            "the position_velocity loop takes a reference-fed compensator without "
+            "adaptation (compensator.feed, compensator.adaptation_rate_per_s)"
+        )
+    return ""
 
 
 def load_plant(path: str | Path | None = None) -> PlantConfig:
@@ -116,15 +179,6 @@ def build_reference(s: Scenario) -> Reference:
     """
     c = s.scenario
     smooth = (s.controller.servo_period_s, c.acceleration_window_s, c.jerk_window_s, c.dwell_s)
-    duration_s = {
-        "circle": c.revolutions * 2 * math.pi * c.radius_m / c.feed_m_s,
-        "sine": c.periods / c.frequency_Hz,
-        "step_stop": 0.0,
-    }[c.trajectory]
-    if duration_s > MAX_DURATION_S:
-        raise ScenarioError(
-            f"{s.path}: scenario lasts {duration_s:.0f} s, more than {MAX_DURATION_S:.0f} s"
-        )
     if c.trajectory == "circle":
         ref = circle(c.radius_m, c.feed_m_s, c.revolutions, *smooth)[c.circle_axis == "y"]
     elif c.trajectory == "sine":
@@ -238,11 +292,8 @@ class Loop:
         """
         s = self.scenario
         comp = s.compensator
-        if observer is not None and (comp.feed != "reference" or comp.adaptation_rate_per_s):
-            raise ScenarioError(
-                f"{s.path}: the position_velocity loop takes a reference-fed compensator "
-                "without adaptation (compensator.feed, compensator.adaptation_rate_per_s)"
-            )
+        if observer is not None and _drive_loop_problem(comp):
+            raise ScenarioError(f"{s.path}: {_drive_loop_problem(comp)}")
         ref = self.reference
         n = ref.cycles
         feedforward_A = np.zeros(n)

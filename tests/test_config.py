@@ -25,41 +25,15 @@ def _drop(text: str, key: str) -> str:
     return re.sub(rf"^{re.escape(key)}\s*=.*\n", "", text, count=1, flags=re.MULTILINE)
 
 
+# Ranges and types of every key are drawn by tests/test_schema_configs.py; these are the
+# refusals that need more than one key (the groove against the ball, the lambda range) and
+# one range refusal as the CLI prints it.
 BAD_VALUES = [
     ("raceway_radius_m", "3.175e-3", "bearing.raceway_radius_m", "wider than the ball"),
     ("raceway_radius_m", "3.0e-3", "bearing.raceway_radius_m", "wider than the ball"),
     ("raceway_radius_m", "3.18e-3", "bearing.raceway_radius_m", "wider than the ball"),
     ("ball_radius_m", "0.0", "bearing.ball_radius_m", "must be in [0.0001, 0.05]"),
-    ("ball_radius_m", "-1e-3", "bearing.ball_radius_m", "must be in"),
-    ("ball_radius_m", "1e-300", "bearing.ball_radius_m", "must be in"),
-    ("ball_radius_m", "1.0", "bearing.ball_radius_m", "must be in"),
-    ("raceway_radius_m", "-3.5e-3", "bearing.raceway_radius_m", "must be in"),
-    ("raceway_radius_m", "1e-300", "bearing.raceway_radius_m", "must be in"),
-    ("youngs_modulus_ball_Pa", "0", "bearing.youngs_modulus_ball_Pa", "must be in"),
-    ("youngs_modulus_ball_Pa", "1e308", "bearing.youngs_modulus_ball_Pa", "must be in"),
-    ("youngs_modulus_raceway_Pa", "-2e11", "bearing.youngs_modulus_raceway_Pa", "must be in"),
-    ("poisson_ratio_ball", "0.5", "bearing.poisson_ratio_ball", "must be in [0, 0.5)"),
-    ("poisson_ratio_raceway", "-0.1", "bearing.poisson_ratio_raceway", "must be in [0, 0.5)"),
-    ("friction_coefficient", "0.0", "bearing.friction_coefficient", "must be in"),
-    ("friction_coefficient", "2.0", "bearing.friction_coefficient", "must be in"),
-    ("ball_loads_N", "[50.0, 0.0]", "stand.ball_loads_N", "must be in"),
-    ("ball_loads_N", "[-50.0]", "stand.ball_loads_N", "must be in"),
-    ("ball_loads_N", "[1e300]", "stand.ball_loads_N", "must be in"),
-    ("ball_loads_N", "[1e12]", "stand.ball_loads_N", "must be in"),
-    ("carriage_velocity_m_s", "1e-300", "stand.carriage_velocity_m_s", "must be in"),
-    ("carriage_velocity_m_s", "1e3", "stand.carriage_velocity_m_s", "must be in"),
-    ("ball_loads_N", "[]", "stand.ball_loads_N", "non-empty array"),
-    ("ball_radius_m", '"3 mm"', "bearing.ball_radius_m", "must be a number"),
-    ("ball_radius_m", "true", "bearing.ball_radius_m", "must be a number"),
-    ("ball_radius_m", "nan", "bearing.ball_radius_m", "must be finite"),
-    ("ball_loads_N", "50.0", "stand.ball_loads_N", "non-empty array"),
-    ("ball_loads_N", '["a"]', "stand.ball_loads_N[0]", "must be a number"),
-    ("tangential_stiffness", '"hooke"', "model.tangential_stiffness", "must be one of"),
-    ("bristles_per_stripe", "2.5", "model.bristles_per_stripe", "must be an integer"),
-    ("stripes_per_area", "0", "model.stripes_per_area", "must be in"),
-    ("lambda_max", "0.5", "model.lambda_max", "must be in"),
     ("lambda_max", "1.0", "model.lambda_max", "must be > lambda_min"),
-    ("stop_velocity_m_s", "0.0", "model.stop_velocity_m_s", "must be in"),
 ]
 
 

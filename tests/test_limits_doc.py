@@ -1,8 +1,9 @@
 """docs/limits.md lists every bound gms-comp enforces on its input; this test keeps it true.
 
 The document is generated from the code: the range metadata of every config
-section's fields and the caps (``MAX_*``/``MIN_*`` constants, documented with ``#:``
-comments) of the modules that check untrusted input. When a bound changes, rewrite it:
+section's fields, the declared parameters of each catalogue effect, and the caps
+(``MAX_*``/``MIN_*`` constants and the ``*_SUFFIXES`` of output formats, documented with
+``#:`` comments) of the modules that check untrusted input. When a bound changes, rewrite it:
 
     python tests/test_limits_doc.py
 """
@@ -35,6 +36,7 @@ SECTIONS = (
 )
 CAP_MODULES = (
     "gms_comp.validation",
+    "gms_comp.arguments",
     "gms_comp.physics.config",
     "gms_comp.physics.contact",
     "gms_comp.tables.table",
@@ -43,11 +45,16 @@ CAP_MODULES = (
     "gms_comp.measured.trace_clock",
     "gms_comp.measured.trace_units",
     "gms_comp.app.sweep",
+    "gms_comp.app.replay",
+    "sim.scenarios",
+    "firmware_bridge.frame_log",
 )
-_CAP = re.compile(r"((?:^#:.*\n)+)^((?:MAX|MIN)_[A-Z0-9_]+)\s*=", re.MULTILINE)
+_CAP = re.compile(r"((?:^#:.*\n)+)^((?:MAX|MIN)_[A-Z0-9_]+|[A-Z_]+_SUFFIXES)\s*=", re.MULTILINE)
 
 
-def _number(value: float) -> str:
+def _number(value: float | tuple[str, ...]) -> str:
+    if isinstance(value, tuple):
+        return ", ".join(f"`{v}`" for v in value)
     if isinstance(value, int):
         return f"{value:,}".replace(",", " ")
     if math.isinf(value):
@@ -101,6 +108,22 @@ def render() -> str:
             out.append(
                 f"| `{section}.{f.name}` | {kind} | {_default(f)} | {_range(f, hints[f.name])} |"
             )
+    out += [
+        "",
+        "## Table extensions (catalogue effects)",
+        "",
+        "A table's extensions are read with each effect's declared parameters and ranges",
+        "(`replay --model`, the observer).",
+        "",
+        "| parameter | default | allowed |",
+        "|---|---|---|",
+    ]
+    from gms_comp.runtime.effects import CATALOGUE
+
+    for effect, cls in CATALOGUE.items():
+        hints = typing.get_type_hints(cls)
+        for f in dataclasses.fields(cls):
+            out.append(f"| `{effect}.{f.name}` | {_default(f)} | {_range(f, hints[f.name])} |")
     out += [
         "",
         "## Caps on files, counts and models",

@@ -369,7 +369,7 @@ def test_a_diagnose_json_s_baseline_keeps_its_velocity_level(tmp_path: Path) -> 
     a null tail is the exponential, a law that is not a boolean is refused)."""
     baseline = {"breakaway_m": [1e-6, 1e-5], "limit_N": [2.0, 0.0], "slip_level": 1.2,
                 "transition_velocity_m_s": 3e-4, "transition_exponent": 1.5,
-                "transition_tail": 1.0, "limit_follows_level": True, "mass_kg": 0.0}  # fmt: skip
+                "transition_tail": 1.0, "limit_follows_level": True, "mass_kg": 95.0}  # fmt: skip
     path = tmp_path / "diagnosis.json"
     path.write_text(json.dumps({"baseline": baseline}))
     gms = replay.load_model(path).axis.gms

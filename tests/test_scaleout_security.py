@@ -12,6 +12,8 @@ import argparse
 import datetime
 import ipaddress
 import json
+import select
+import socket
 from collections.abc import Iterator
 from pathlib import Path
 from urllib.parse import urlsplit
@@ -20,9 +22,9 @@ import pytest
 
 from gms_comp.app.cli import main
 from gms_comp.app.scaleout import PLAIN_TCP_WARNING, _check_remote, dask_client, tls_files
+from gms_comp.arguments import scheduler_address
 from gms_comp.config import default_config_path
 from gms_comp.errors import InputError
-from gms_comp.validation import scheduler_address
 
 crypto = pytest.importorskip(
     "cryptography", reason="the TLS test makes its certificates with the cryptography package"
@@ -57,11 +59,41 @@ def test_scheduler_addresses_are_accepted(value: str) -> None:
     assert scheduler_address(value) == value
 
 
-def test_plain_tcp_to_a_remote_host_warns_in_one_line(capsys: pytest.CaptureFixture[str]) -> None:
-    _check_remote("tcp://192.0.2.7:8786", None)
+def test_plain_tcp_is_refused_unless_the_user_says_insecure(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    for address in ("tcp://192.0.2.7:8786", "tcp://127.0.0.1:8786"):
+        with pytest.raises(InputError, match="--insecure-scheduler"):
+            _check_remote(address, None)
+    assert capsys.readouterr().err == ""
+    _check_remote("tcp://192.0.2.7:8786", None, insecure=True)
     err = capsys.readouterr().err
     assert err == PLAIN_TCP_WARNING.format(address="tcp://192.0.2.7:8786") + "\n"
     assert "runs any code" in err
+
+
+def test_a_sweep_file_scheduler_is_refused_without_connecting(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A hostile sweep file's scheduler is never contacted: a listening socket at its
+    address sees no connection, whatever the flags; the refusal is one line, exit 2."""
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+        port = server.getsockname()[1]
+        sweep = tmp_path / "hostile.toml"
+        sweep.write_text(
+            f'[sweep]\nbase_config = "{default_config_path()}"\nelements = 2\n'
+            '[sweep.axes]\n"stand.ball_loads_N" = [50.0]\n'
+            f'[scaleout]\nscheduler = "tcp://127.0.0.1:{port}"\n'
+        )
+        for extra in ([], ["--insecure-scheduler"], ["--workers", "1"]):
+            assert main(["sweep", str(sweep), *extra, "-o", str(tmp_path / "fam")]) == 2
+            err = capsys.readouterr().err.strip().splitlines()
+            assert len(err) == 1 and "scaleout" in err[0] and "--scheduler" in err[0], err
+        readable, _, _ = select.select([server], [], [], 0.5)
+        assert not readable, "the sweep file's scheduler was contacted"
+    assert not (tmp_path / "fam").exists()
 
 
 def test_transport_and_tls_files_must_match(tmp_path: Path) -> None:
@@ -183,9 +215,13 @@ def test_sweep_runs_through_a_tls_scheduler(
     assert [p["status"] for p in manifest["points"]] == ["ok"]
     capsys.readouterr()
 
-    # Plain tcp to the TLS port: no connection, one line, exit 2.
+    # Plain tcp to the TLS port: refused before connecting, one line, exit 2; said to be
+    # insecure, it reaches no scheduler there.
     plain = address.replace("tls://", "tcp://")
     assert main(["sweep", str(sweep), "--scheduler", plain, "-o", str(out)]) == 2
+    assert "--insecure-scheduler" in capsys.readouterr().err
+    argv = ["sweep", str(sweep), "--scheduler", plain, "--insecure-scheduler", "-o", str(out)]
+    assert main(argv) == 2
     assert "cannot reach the Dask scheduler" in capsys.readouterr().err
 
     # Certificates from another authority: refused the same way.

@@ -172,27 +172,45 @@ def test_grid_over_the_cap_is_refused_before_it_is_built(tmp_path: Path) -> None
     assert "8e+09 points, more than the 10000" in str(info.value)
 
 
-def test_scaleout_section_resolves_tls_files_beside_the_sweep_file(tmp_path: Path) -> None:
-    for name in ("ca.pem", "me.pem", "me.key"):
-        (tmp_path / "certs").mkdir(exist_ok=True)
-        (tmp_path / "certs" / name).write_text("-")
+def test_a_sweep_file_may_not_name_a_scheduler(tmp_path: Path) -> None:
+    """A [scaleout] section in a sweep file (a scheduler, TLS files) is refused: the file
+    says what to compute, never where (tests/test_scaleout_security.py: without connecting)."""
     path = _sweep_file(tmp_path, f'"stand.ball_loads_N" = {LOADS}')
-    section = (
-        '\n[scaleout]\nscheduler = "tls://10.1.2.3:8786"\ntls_ca_file = "certs/ca.pem"\n'
+    for section in ('scheduler = "tls://10.1.2.3:8786"', 'tls_ca_file = "ca.pem"'):
+        path.write_text(_sweep_file(tmp_path, f'"stand.ball_loads_N" = {LOADS}').read_text()
+                        + f"\n[scaleout]\n{section}\n")  # fmt: skip
+        with pytest.raises(ConfigError) as info:
+            load_sweep(path)
+        assert info.value.key == "scaleout"
+        assert "--scheduler" in str(info.value)
+
+
+def test_cluster_config_resolves_tls_files_beside_it(tmp_path: Path) -> None:
+    """--cluster-config: the user's own config's [scaleout] gives the scheduler and the TLS
+    files (relative to that config); the command line's --scheduler wins."""
+    from argparse import Namespace
+
+    from gms_comp.app.scaleout import cli_cluster
+
+    (tmp_path / "certs").mkdir()
+    for name in ("ca.pem", "me.pem", "me.key"):
+        (tmp_path / "certs" / name).write_text("-")
+    own = tmp_path / "mine.toml"
+    own.write_text(
+        '[scaleout]\nscheduler = "tls://10.1.2.3:8786"\ntls_ca_file = "certs/ca.pem"\n'
         'tls_cert = "certs/me.pem"\ntls_key = "certs/me.key"\n'
     )
-    path.write_text(path.read_text() + section)
-    spec = load_sweep(path)
-    assert spec.scaleout.scheduler == "tls://10.1.2.3:8786"
-    assert Path(spec.scaleout.tls_key) == (tmp_path / "certs" / "me.key").resolve()
-    path.write_text(path.read_text().replace("me.key", "gone.key"))
+    args = Namespace(scheduler=None, cluster_config=own, tls_ca_file=None, tls_cert=None,
+                     tls_key=None)  # fmt: skip
+    scheduler, tls = cli_cluster(args)
+    assert scheduler == "tls://10.1.2.3:8786"
+    assert tls is not None and tls.key == (tmp_path / "certs" / "me.key").resolve()
+    args.scheduler = "tls://10.9.9.9:8786"
+    assert cli_cluster(args)[0] == "tls://10.9.9.9:8786"
+    own.write_text(own.read_text().replace("me.key", "gone.key"))
     with pytest.raises(ConfigError) as info:
-        load_sweep(path)
+        cli_cluster(args)
     assert info.value.key == "scaleout.tls_key"
-    path.write_text(path.read_text().replace("tls://10.1.2.3:8786", "not a url"))
-    with pytest.raises(ConfigError) as info:
-        load_sweep(path)
-    assert info.value.key == "scaleout.scheduler"
 
 
 def test_two_sweeps_into_one_folder_do_not_race(tmp_path: Path) -> None:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import pytest
@@ -11,8 +10,6 @@ from gms_comp.errors import ConfigError, GmsCompError, InputError, TableError, T
 from gms_comp.validation import (
     MAX_NESTING_DEPTH,
     decode_utf8,
-    float_in_range,
-    int_in_range,
     nesting_depth,
     parse_json,
     read_text,
@@ -72,17 +69,3 @@ def test_read_text_checks_size_and_kind(tmp_path: Path) -> None:
         read_text(tmp_path, max_bytes=100)
     with pytest.raises(ConfigError, match="file not found"):
         read_toml_document(tmp_path / "none.toml")
-
-
-def test_command_line_number_types() -> None:
-    assert int_in_range(1, 8)("8") == 8
-    assert float_in_range(1.0, 1e6)("1e3") == 1e3
-    for parse, bad in (
-        (int_in_range(1, 8), "-1"),
-        (int_in_range(1, 8), "x"),
-        (float_in_range(1.0, 1e6), "1e9"),
-        (float_in_range(1.0, 1e6), "nan"),
-        (float_in_range(1.0, 1e6), "inf"),
-    ):
-        with pytest.raises(argparse.ArgumentTypeError):
-            parse(bad)

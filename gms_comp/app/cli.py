@@ -5,7 +5,10 @@ Each subcommand lives in ``gms_comp.app.commands.<name>`` and exposes
 taking the parsed namespace and returning the exit code. Bad input raised as
 :class:`~gms_comp.errors.GmsCompError` becomes one line on stderr and exit code 2;
 Ctrl-C, wherever it lands (importing the subcommands, parsing, running), one line
-and exit code 130; a closed stdout (``| head``) ends the run quietly with exit code 1.
+and exit code 130, SIGTERM one line and exit code 143, both after every file being
+written has been removed (the atomic writer's temporary files, a frame log) and a Dask
+cluster shut down quietly; a closed stdout (``| head``) ends the run quietly with exit
+code 1.
 
 Every subcommand follows one convention: ``--json`` prints the result as JSON on
 stdout and nothing else there; without it a short human summary goes to stdout.
@@ -19,14 +22,19 @@ import _thread
 import argparse
 import importlib
 import os
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, NoReturn
 
 if TYPE_CHECKING:
     from sys import UnraisableHookArgs
 
+from pathlib import Path
+
 from gms_comp import __version__
+from gms_comp.arguments import PathArgument, PathRole, check_paths
 from gms_comp.errors import GmsCompError
 
 # One line per subcommand, each a module gms_comp.app.commands.<name> with register().
@@ -50,6 +58,16 @@ SUBCOMMANDS: tuple[str, ...] = (
 )
 
 INTERRUPTED = 130  # the shell's code for a process ended by SIGINT
+TERMINATED = 143  # ... and by SIGTERM
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread like Ctrl-C so that every ``finally`` and
+    context manager on the way out runs (temporary files removed, clusters closed)."""
+
+
+def _terminate(_signum: int, _frame: object) -> None:
+    raise Terminated
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -75,7 +93,30 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     module = (command or "").replace("-", "_")
     for name in (module,) if module in SUBCOMMANDS else SUBCOMMANDS:
         importlib.import_module(f"gms_comp.app.commands.{name}").register(sub)
+    for subparser in sub.choices.values():
+        subparser.set_defaults(path_arguments=_path_arguments(subparser))
     return parser
+
+
+def _path_arguments(parser: argparse.ArgumentParser) -> tuple[tuple[str, str, PathRole], ...]:
+    """``(dest, option, role)`` of each path argument of ``parser`` (its type a
+    :class:`~gms_comp.arguments.PathArgument`)."""
+    return tuple(
+        (a.dest, "/".join(a.option_strings) or a.metavar or a.dest, a.type.role)  # type: ignore[misc]
+        for a in parser._actions
+        if isinstance(a.type, PathArgument)
+    )
+
+
+def _given_paths(args: argparse.Namespace) -> list[tuple[str, PathRole, Path]]:
+    """The paths given on the command line, with their option and role."""
+    found: list[tuple[str, PathRole, Path]] = []
+    for dest, option, role in getattr(args, "path_arguments", ()):
+        value = getattr(args, dest, None)
+        for item in value if isinstance(value, list) else [value]:
+            if isinstance(item, Path):
+                found.append((option, role, item))
+    return found
 
 
 def _command(argv: Sequence[str]) -> str | None:
@@ -87,11 +128,17 @@ def _command(argv: Sequence[str]) -> str | None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``gms-comp`` with ``argv`` (default: the process arguments); return the exit code."""
     deliver_lost_interrupts()
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
     command = "gms-comp"
     try:
         words = sys.argv[1:] if argv is None else list(argv)
-        args = build_parser(_command(words)).parse_args(words)
+        try:
+            args = build_parser(_command(words)).parse_args(words)
+        except SystemExit as done:  # --help, --version, or a refusal (one line, code 2)
+            return done.code if isinstance(done.code, int) else 2
         command = f"gms-comp {args.command}"
+        check_paths(_given_paths(args))  # before any work: no output over an input
         code: int = args.func(args)
         if _REDELIVERY["lost"]:  # lost, and its thread has not run yet
             raise KeyboardInterrupt
@@ -105,14 +152,20 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         _REDELIVERY["armed"] = False  # interrupted once is enough
         quiet_finalizers()
-        # SIGTERM inside a run that stops in order (app.signals) exits 143, not 130
-        print(f"{command}: {'terminated' if _code(err) == 143 else 'interrupted'}", file=sys.stderr)
-        return _code(err)
+        # SIGTERM: the handler's Terminated, or a run that stops in order (app.signals)
+        terminated = isinstance(err, Terminated) or isinstance(err.__cause__, Terminated)
+        code = TERMINATED if terminated else _code(err)
+        print(
+            f"{command}: {'terminated' if code == TERMINATED else 'interrupted'}", file=sys.stderr
+        )
+        return code
     except BrokenPipeError:  # the reader of stdout went away (`gms-comp ... | head`)
         _silence_stdout()
         return 1
     finally:
         _REDELIVERY["armed"] = False
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     return code
 
 

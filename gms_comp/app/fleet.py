@@ -85,9 +85,10 @@ def diagnose_one(job: FleetJob) -> dict[str, Any]:
         "input": input_json(trace),
     }
     if job.report_dir is not None:
-        from gms_comp.measured.diagnosis.report import write_report
+        from gms_comp.app.report_set import input_record, write_report_set
 
-        row["report"] = [str(p) for p in write_report(result, job.report_dir)]
+        inputs = input_record({"trace": job.trace, "config": job.config})
+        row["report"] = [str(p) for p in write_report_set(result, job.report_dir, inputs)]
     return row
 
 

@@ -39,7 +39,6 @@ into any model's replay.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
@@ -53,11 +52,30 @@ from scipy import signal
 
 from gms_comp.arrays import FloatArray
 from gms_comp.config import parse_section, read_toml
-from gms_comp.errors import GmsCompError
+from gms_comp.errors import GmsCompError, TableError
 from gms_comp.gms import GmsParams
 from gms_comp.measured.traces import load_trace
-from gms_comp.tables.table import GmsTable, table_from_dict
-from gms_comp.validation import InputError
+from gms_comp.runtime.effects import check_extensions
+from gms_comp.tables.table import (
+    MAX_FORCE_N,
+    MAX_SLIP_LEVEL,
+    MAX_STIFFNESS_N_PER_M,
+    MAX_TRANSITION_EXPONENT,
+    MAX_TRANSITION_TAIL,
+    MAX_TRANSITION_VELOCITY_M_S,
+    GmsTable,
+    table_from_dict,
+)
+from gms_comp.validation import (
+    MAX_TABLE_BYTES,
+    MAX_TABLE_ELEMENTS,
+    InputError,
+    JsonReader,
+    check_count,
+    parse_json,
+    read_text,
+    shown,
+)
 from sim.controller import ControllerConfig
 from sim.position_loop import LoopRun, PositionLoop, RigidAxisModel, simulate_loop
 
@@ -86,6 +104,10 @@ STEADY_ACCELERATION_M_S2 = 0.05
 # transient was fitted on, with a deadband of 0.6 encoder steps) does not. Chosen on
 # DATA_EMPS (force error 8.0 % with none, 4.3 % from 3 um to 10 um).
 REVERSAL_DEADBAND_M = 3e-6
+#: Reversal deadband of a replay (``--reversal-deadband``), m.
+MAX_REVERSAL_DEADBAND_M = 1e-2
+#: Mass of a replayed axis (a diagnosis baseline's, or a table's inertia), kg.
+MAX_AXIS_MASS_KG = 1e5
 
 # The measurement chain's effects (the catalogue's measurement_only ones): the rigid axis
 # takes its mass from ``inertia`` and leaves the others out, as the observer does, but for
@@ -210,6 +232,13 @@ def table_axis_model(
         elif ext.effect == "direction_asymmetry":
             asymmetry += p["c_diff_Ns_per_m"]
         elif ext.effect == "inertia":
+            if not 0 < p["mass_kg"] <= MAX_AXIS_MASS_KG:
+                raise InputError(
+                    where,
+                    f"extensions.{table.extensions.index(ext)}.parameters.mass_kg",
+                    f"the replayed axis needs a mass in (0, {MAX_AXIS_MASS_KG:g}] kg, "
+                    f"got {shown(p['mass_kg'])}",
+                )
             fields["mass_kg"] = p["mass_kg"]
         elif ext.effect == "drive_lag" and held_period_s is not None:
             fields["drive_lag_s"] = max(p["lag_s"] - 0.5 * held_period_s, 0.0)
@@ -234,26 +263,49 @@ def table_axis_model(
 
 def baseline_axis_model(baseline: Mapping[str, Any], where: str) -> RigidAxisModel:
     """The rigid axis of a diagnosis baseline (its free GMS, velocity level and mass; a
-    baseline written before the level's transition was recorded has the defaults)."""
-    try:
-        breakaway = np.asarray(baseline["breakaway_m"], float)
-        limit = np.asarray(baseline["limit_N"], float)
-        keep = limit > 0
-        level = {
-            key: float(baseline[key])
-            for key in ("transition_velocity_m_s", "transition_exponent", "transition_tail")
-            if key in baseline and (key != "transition_tail" or baseline[key] is not None)
-        }  # absent: the default; a null tail is the infinite one
-        law = baseline.get("limit_follows_level", False)
-        if not isinstance(law, bool):
-            raise TypeError(f"limit_follows_level must be true or false, got {law!r}")
-        gms = GmsParams(
-            limit[keep] / breakaway[keep], limit[keep],
-            slip_level=float(baseline["slip_level"]), limit_follows_level=law, **level,
+    baseline written before the level's transition was recorded has the defaults).
+
+    Every field is checked as a table's same field is (:mod:`gms_comp.tables.table`'s
+    bounds), the mass against :data:`MAX_AXIS_MASS_KG`."""
+    r = JsonReader(where)
+    key = "baseline"
+    breakaway = r.vector(
+        r.get(baseline, f"{key}.breakaway_m"), f"{key}.breakaway_m", None, True, 1.0
+    )
+    check_count(where, f"{key}.breakaway_m", len(breakaway), MAX_TABLE_ELEMENTS, "elements")
+    limit = r.vector(
+        r.get(baseline, f"{key}.limit_N"), f"{key}.limit_N", len(breakaway), False, MAX_FORCE_N
+    )
+    bounds = {
+        "transition_velocity_m_s": MAX_TRANSITION_VELOCITY_M_S,
+        "transition_exponent": MAX_TRANSITION_EXPONENT,
+        "transition_tail": MAX_TRANSITION_TAIL,
+    }
+    level = {
+        name: r.number(baseline, f"{key}.{name}", True, hi)
+        for name, hi in bounds.items()
+        if name in baseline and (name != "transition_tail" or baseline[name] is not None)
+    }  # absent: the default; a null tail is the infinite one
+    law = baseline.get("limit_follows_level", False)
+    if not isinstance(law, bool):
+        raise r.error(f"{key}.limit_follows_level", f"must be true or false, got {shown(law)}")
+    keep = np.asarray(limit) > 0
+    if not keep.any():
+        raise r.error(f"{key}.limit_N", "no element has a limit > 0: there is no friction")
+    k = np.asarray(limit)[keep] / np.asarray(breakaway)[keep]
+    if np.any(k > MAX_STIFFNESS_N_PER_M):
+        raise r.error(f"{key}.breakaway_m", f"stiffness above {MAX_STIFFNESS_N_PER_M:g} N/m")
+    gms = GmsParams(
+        k, np.asarray(limit)[keep],
+        slip_level=r.number(baseline, f"{key}.slip_level", True, MAX_SLIP_LEVEL),
+        limit_follows_level=law, **level,
+    )  # fmt: skip
+    if r.get(baseline, f"{key}.mass_kg") == 0:
+        raise r.error(
+            f"{key}.mass_kg", "is 0: the diagnosis of a friction-force trace has no mass to "
+            "replay; give the diagnosis of a drive-force record (or a table)",
         )  # fmt: skip
-        return RigidAxisModel(float(baseline["mass_kg"]), gms=gms)
-    except (KeyError, TypeError, ValueError) as err:
-        raise InputError(where, "baseline", f"not a diagnosis baseline ({err})") from err
+    return RigidAxisModel(r.number(baseline, f"{key}.mass_kg", True, MAX_AXIS_MASS_KG), gms=gms)
 
 
 @dataclass(frozen=True)
@@ -275,13 +327,12 @@ def load_model(
     if path is None:
         return ModelChoice("reference", reference_model())
     where = str(path)
-    try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, ValueError) as err:
-        raise InputError(where, "", f"not a readable JSON file ({err})") from err
+    text = read_text(path, max_bytes=MAX_TABLE_BYTES, what="model file", error=TableError)
+    doc = parse_json(text, where, error=TableError)
     mass = BENCHMARK_REFERENCE["M_kg"]
     if isinstance(doc, dict) and doc.get("format") == "gms-comp-table":
         table = table_from_dict(doc, where)
+        check_extensions(table, where)
         name = "extended" if table.extensions else "table"
         axis = table_axis_model(table, mass, where, reversal_deadband_m, held_period_s)
         return ModelChoice(name, axis, table)

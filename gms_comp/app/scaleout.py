@@ -7,9 +7,12 @@ runs serially in this process: the serial path and the distributed path call
 one function on one item, so their results are identical.
 
 Dask moves pickled functions: whoever can reach a scheduler runs code on its
-workers and in the client. A remote scheduler should therefore be reached over
-TLS with certificates (:class:`TlsFiles`, Dask's ``Security``); a plain
-``tcp://`` address works but prints a one-line warning on stderr.
+workers and in the client, and the client unpickles what the scheduler sends. So the
+scheduler comes only from the command line (``--scheduler``, or the ``[scaleout]``
+section of the user's own config named with ``--cluster-config``), never from an input
+file, and is reached over TLS with certificates (:class:`TlsFiles`, Dask's
+``Security``); a plain ``tcp://`` address is refused unless the user says
+``--insecure-scheduler`` (then one warning line on stderr for a remote host).
 
 Each job runs inside :func:`_guarded`, which turns a :class:`GmsCompError` or
 any other exception into an error row instead of failing the whole run. A
@@ -21,9 +24,11 @@ from __future__ import annotations
 
 import argparse
 import ipaddress
+import logging
 import os
 import sys
 import traceback
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -34,15 +39,22 @@ from urllib.parse import urlsplit
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from gms_comp.config import parse_section
+from gms_comp.arguments import input_file, int_in_range, scheduler_address
+from gms_comp.config import parse_section, read_toml
 from gms_comp.errors import ConfigError, GmsCompError, InputError
-from gms_comp.validation import MAX_WORKERS, input_file, int_in_range, scheduler_address
+from gms_comp.validation import MAX_WORKERS
 
 #: Printed (one line, stderr) when a remote scheduler is reached over plain tcp.
 PLAIN_TCP_WARNING = (
     "warning: the Dask scheduler at {address} is reached over plain tcp: anyone who can "
     "reach it runs any code on its workers and in this client; use tls:// with "
     "--tls-ca-file/--tls-cert/--tls-key"
+)
+#: The refusal of a plain tcp scheduler without ``--insecure-scheduler``.
+PLAIN_TCP_REFUSAL = (
+    "{address} is plain tcp: whoever answers there runs any code in this client and on "
+    "the workers; use tls:// with --tls-ca-file/--tls-cert/--tls-key, or say "
+    "--insecure-scheduler on a network you trust"
 )
 
 T = TypeVar("T")
@@ -105,8 +117,9 @@ class TlsFiles:
 class ScaleoutConfig:
     """The optional ``[scaleout]`` section: where to run and how to reach the scheduler.
 
-    Paths are relative to the file that holds the section; command-line options
-    override them.
+    Read only from the user's own config named with ``--cluster-config`` (a sweep file's
+    is refused). Paths are relative to the file that holds the section; command-line
+    options override them.
     """
 
     scheduler: str = ""
@@ -174,8 +187,9 @@ def _is_loopback(address: str) -> bool:
         return False
 
 
-def _check_remote(scheduler: str, tls: TlsFiles | None) -> None:
-    """Refuse a malformed address or a transport that does not match the TLS files."""
+def _check_remote(scheduler: str, tls: TlsFiles | None, insecure: bool = False) -> None:
+    """Refuse a malformed address, a transport that does not match the TLS files, and a
+    plain tcp one unless ``insecure`` (the user's ``--insecure-scheduler``)."""
     try:
         scheduler_address(scheduler)
     except argparse.ArgumentTypeError as err:
@@ -189,6 +203,8 @@ def _check_remote(scheduler: str, tls: TlsFiles | None) -> None:
         raise InputError(
             "--scheduler", "", f"TLS files were given but {scheduler} is plain tcp; use tls://"
         )
+    if scheme == "tcp" and not insecure:
+        raise InputError("--scheduler", "", PLAIN_TCP_REFUSAL.format(address=scheduler))
     if scheme == "tcp" and not _is_loopback(scheduler):
         print(PLAIN_TCP_WARNING.format(address=scheduler), file=sys.stderr)
 
@@ -198,19 +214,21 @@ def dask_client(
     scheduler: str | None = None,
     n_workers: int | None = None,
     tls: TlsFiles | None = None,
+    insecure: bool = False,
 ) -> Iterator[Any]:
     """A ``distributed.Client``: to ``scheduler`` if given, else on a new local cluster.
 
     The local cluster has ``n_workers`` single-threaded worker processes
     (default: one per core), so numba kernels are not fighting over cores; its
     scheduler and workers listen on 127.0.0.1 only. A remote ``tls://`` scheduler
-    is reached with the certificates of ``tls``; a ``tcp://`` one prints a warning.
+    is reached with the certificates of ``tls``; a ``tcp://`` one only when
+    ``insecure`` (refused before connecting otherwise).
     """
     import dask
     from distributed import Client, LocalCluster
 
     if scheduler:
-        _check_remote(scheduler, tls)
+        _check_remote(scheduler, tls, insecure)
         security = tls.security() if tls is not None else None
         try:
             client = Client(scheduler, timeout="10s", security=security)
@@ -230,20 +248,32 @@ def dask_client(
     # reduction runs ~30 % slower in a worker than in this process. Keep the others.
     environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ"))
     environ.pop("MALLOC_TRIM_THRESHOLD_", None)
-    with (
-        dask.config.set({"distributed.nanny.pre-spawn-environ": environ}),
-        LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            host=LOCAL_HOST,
-            dashboard_address=None,
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        if not _is_loopback(cluster.scheduler_address):  # pragma: no cover - a Dask change
-            raise GmsCompError(f"local Dask scheduler not on loopback: {cluster.scheduler_address}")
-        yield client
+    # Interrupted, the workers die holding semaphores, which multiprocessing's resource
+    # tracker (a process of its own, started with the cluster, whose warnings filter
+    # comes from the environment) frees and reports in a warning: freed is enough.
+    os.environ.setdefault("PYTHONWARNINGS", "ignore:resource_tracker:UserWarning")
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
+        with warnings.catch_warnings():
+            # The scheduler's small HTTP server (health routes, on 127.0.0.1) takes another
+            # port when 8787 is in use (another cluster's) and says so: that is fine.
+            warnings.filterwarnings("ignore", "Port .* is already in use", UserWarning)
+            cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                host=LOCAL_HOST,
+                dashboard_address=None,
+                # Dask's own log lines (a worker that loses its scheduler when Ctrl-C or
+                # SIGTERM closes the cluster logs tracebacks) stay out of the one-line
+                # report; a job's failure is reported in its row.
+                silence_logs=logging.CRITICAL,
+            )
+        with cluster, Client(cluster) as client:
+            if not _is_loopback(cluster.scheduler_address):  # pragma: no cover - Dask change
+                raise GmsCompError(
+                    f"local Dask scheduler not on loopback: {cluster.scheduler_address}"
+                )
+            yield client
 
 
 def run_jobs(
@@ -294,7 +324,18 @@ def add_cluster_arguments(parser: Any, default_hint: str = "a local cluster") ->
         "--scheduler",
         metavar="ADDRESS",
         type=scheduler_address,
-        help=f"Dask scheduler, tls://host:8786 or tcp://host:8786 (default: {default_hint})",
+        help=f"Dask scheduler, tls://host:8786 with the --tls-* files (default: {default_hint})",
+    )
+    parser.add_argument(
+        "--cluster-config",
+        metavar="TOML",
+        type=input_file,
+        help="your own config whose [scaleout] section names the scheduler and TLS files",
+    )
+    parser.add_argument(
+        "--insecure-scheduler",
+        action="store_true",
+        help="allow a plain tcp:// scheduler (anyone who can reach it runs code here)",
     )
     for option, what in (
         ("--tls-ca-file", "CA certificate (PEM) that signed the scheduler's certificate"),
@@ -311,8 +352,26 @@ def add_cluster_arguments(parser: Any, default_hint: str = "a local cluster") ->
     parser.add_argument("--serial", action="store_true", help="run in this process, no Dask")
 
 
-def cli_tls(args: Any) -> TlsFiles | None:
-    """The TLS files given on the command line, None when none were."""
+def cli_cluster(args: Any) -> tuple[str | None, TlsFiles | None]:
+    """The scheduler and TLS files the command line names: ``--scheduler`` and
+    ``--tls-*``, else the ``[scaleout]`` section of ``--cluster-config``; ``(None,
+    None)``: a local cluster."""
+    cfg = ScaleoutConfig()
+    if args.cluster_config is not None:
+        cfg = load_scaleout(read_toml(args.cluster_config), args.cluster_config)
+    tls = None
     if args.tls_ca_file or args.tls_cert or args.tls_key:
-        return tls_files(args.tls_ca_file, args.tls_cert, args.tls_key)
-    return None
+        tls = tls_files(args.tls_ca_file, args.tls_cert, args.tls_key)
+    elif cfg.tls_ca_file or cfg.tls_cert or cfg.tls_key:
+        source = f"{args.cluster_config}: scaleout"
+        tls = tls_files(cfg.tls_ca_file, cfg.tls_cert, cfg.tls_key, source=source)
+    return args.scheduler or cfg.scheduler or None, tls
+
+
+@contextmanager
+def cli_client(args: Any) -> Iterator[Any]:
+    """:func:`dask_client` as the command line asks (:func:`cli_cluster`,
+    ``--workers``, ``--insecure-scheduler``)."""
+    scheduler, tls = cli_cluster(args)
+    with dask_client(scheduler, args.workers, tls, args.insecure_scheduler) as client:
+        yield client

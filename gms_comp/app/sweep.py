@@ -10,12 +10,21 @@ A sweep file names a base config, the number of elements and the axes::
     "stand.ball_loads_N" = [25.0, 50.0, 100.0]   # a number for an array key sets every entry
     "bearing.ball_radius_m" = [3.0e-3, 3.175e-3]
 
-Every point is written as a complete config (``points/NNNN.toml``) and validated
-by the same loader as any config, so an invalid point is reported with the
-file, key and reason while the other points complete. A point whose table
-exists and was made from identical config bytes is not computed again: a run
-that stopped (or whose worker died) resumes where it was. The manifest is
-rewritten every few seconds and at the end (also when interrupted).
+Every point is written as a complete config (``points/NNNN.toml``, the sweep's
+``elements`` in its ``[table]``): its whole effective config, validated by the same
+loader as any config, so an invalid point is reported with the file, key and reason
+while the other points complete. A point whose table exists and was made from identical
+config bytes (its ``source.sha256``) is not computed again: a run that stopped (or whose
+worker died) resumes where it was, and a point whose config changed (another base config,
+axis value or ``elements``) is computed again, its row saying so. Each table names the
+hash of the config it was made from; the manifest, which lists every point with its
+config's hash, is rewritten every few seconds and last at the end (also when
+interrupted).
+
+A sweep file says what to compute, never where: a ``[scaleout]`` section (a scheduler
+address, TLS files) is refused. Dask runs what its scheduler sends, so the scheduler and
+its certificates come from the command line (``--scheduler``, ``--tls-*``,
+``--cluster-config``) only.
 """
 
 from __future__ import annotations
@@ -35,7 +44,7 @@ import numpy as np
 import tomli_w
 
 from gms_comp import __version__
-from gms_comp.app.scaleout import JobResult, ScaleoutConfig, load_scaleout, run_jobs
+from gms_comp.app.scaleout import JobResult, run_jobs
 from gms_comp.atomic import write_bytes, write_text
 from gms_comp.config import config_hash, default_config_path, read_toml
 from gms_comp.errors import ConfigError, TableError
@@ -65,7 +74,6 @@ class SweepSpec:
     base_config: Path
     elements: int
     axes: tuple[tuple[str, tuple[Any, ...]], ...]
-    scaleout: ScaleoutConfig = dataclasses.field(default_factory=ScaleoutConfig)
 
     def grid(self) -> list[dict[str, Any]]:
         """Every point of the grid, as ``{dotted key: value}``, last axis fastest."""
@@ -80,11 +88,14 @@ def load_sweep(path: str | Path) -> SweepSpec:
     """Read and check a sweep file (errors name the file and the key)."""
     p = Path(path)
     doc = read_toml_document(p, error=ConfigError)
-    sweep = doc.get("sweep")
-    if not isinstance(sweep, dict) or not set(doc) <= {"sweep", "scaleout"}:
+    if "scaleout" in doc:
         raise ConfigError(
-            str(p), "sweep", "a sweep file holds one [sweep] table (and optionally [scaleout])"
-        )
+            str(p), "scaleout", "a sweep file may not say where code runs: give the scheduler "
+            "on the command line (--scheduler and --tls-*, or --cluster-config YOUR.toml)",
+        )  # fmt: skip
+    sweep = doc.get("sweep")
+    if not isinstance(sweep, dict) or set(doc) != {"sweep"}:
+        raise ConfigError(str(p), "sweep", "a sweep file holds one [sweep] table")
     unknown = set(sweep) - {"base_config", "elements", "axes"}
     if unknown:
         raise ConfigError(
@@ -136,12 +147,17 @@ def load_sweep(path: str | Path) -> SweepSpec:
                 str(p), f"sweep.axes.{key}", f"is not a key of the base config {base_path}"
             )
         parsed.append((key, tuple(values)))
-    return SweepSpec(str(p), base_path, elements, tuple(parsed), load_scaleout(doc, p))
+    return SweepSpec(str(p), base_path, elements, tuple(parsed))
 
 
-def point_document(base_doc: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]:
-    """The base config with a point's values set (a number for an array key fills it)."""
+def point_document(
+    base_doc: Mapping[str, Any], values: Mapping[str, Any], elements: int
+) -> dict[str, Any]:
+    """The point's whole effective config: the base config with the sweep's ``elements``
+    as its ``[table] elements`` and the point's values set (a number for an array key
+    fills it; an axis over ``table.elements`` wins)."""
     doc = copy.deepcopy(dict(base_doc))
+    doc.setdefault("table", {})["elements"] = elements
     for key, value in values.items():
         section, name = key.split(".")
         old = doc[section][name]
@@ -158,32 +174,33 @@ class PointJob:
     index: int
     config_path: str
     table_path: str
-    elements: int
 
 
 def build_point(job: PointJob) -> dict[str, Any]:
-    """Validate one point's config and write its table; returns its fidelity figures."""
+    """Validate one point's config and write its table (every setting, ``elements``
+    included, from that file); returns its fidelity figures."""
     # the ball model loads only where tables are made
     from gms_comp.tables.reduction import reduce_to_gms
     from sim.scenarios import load_plant
 
     cfg = load_ball_config(job.config_path)
     ball_sets = load_plant(job.config_path).ball_set_count
-    table = reduce_to_gms(cfg, job.elements, ball_sets=ball_sets)
+    table = reduce_to_gms(cfg, ball_sets=ball_sets)
     write_table(job.table_path, table)
     return _fidelity_row(table)
 
 
-def _done_fidelity(table_path: Path, sha256: str) -> dict[str, Any] | None:
-    """Fidelity of an existing table made from the same config bytes, else None."""
+def _done_fidelity(table_path: Path, sha256: str) -> dict[str, Any] | str | None:
+    """Fidelity of an existing table made from the same config bytes; a note when a
+    table is there but from another config; None when there is none."""
     if not table_path.exists():
         return None
     try:
         table = read_table(table_path)
     except TableError:
-        return None
+        return "the table there was unreadable: recomputed"
     if table.source_sha256 != sha256:
-        return None
+        return "the point's config changed since its table was made: recomputed"
     return _fidelity_row(table)
 
 
@@ -208,7 +225,8 @@ def run_sweep(
     for index, values in enumerate(spec.grid()):
         cfg_path = points_dir / f"{index:04d}.toml"
         table_path = points_dir / f"{index:04d}.json"
-        write_bytes(cfg_path, tomli_w.dumps(point_document(base_doc, values)).encode())
+        doc = point_document(base_doc, values, spec.elements)
+        write_bytes(cfg_path, tomli_w.dumps(doc).encode())
         sha = config_hash(cfg_path)
         row: dict[str, Any] = {
             "index": index,
@@ -219,12 +237,12 @@ def run_sweep(
             "status": "pending",
         }
         done = _done_fidelity(table_path, sha)
-        if done is not None:
+        if isinstance(done, dict):
             row.update(status="ok", fidelity=done, resumed=True)
         else:
-            jobs.append(
-                PointJob(index, str(cfg_path.resolve()), str(table_path.resolve()), spec.elements)
-            )
+            if done is not None:
+                row["note"] = done
+            jobs.append(PointJob(index, str(cfg_path.resolve()), str(table_path.resolve())))
         rows.append(row)
     manifest = {
         "format": FAMILY_FORMAT,

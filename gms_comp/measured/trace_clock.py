@@ -30,10 +30,11 @@ from typing import Any, Literal
 
 import numpy as np
 
+from gms_comp.arguments import int_in_range
 from gms_comp.arrays import FloatArray
 from gms_comp.errors import TraceError
 from gms_comp.measured.trace_map import scaled
-from gms_comp.validation import MAX_TRACE_SAMPLES, int_in_range
+from gms_comp.validation import MAX_TRACE_SAMPLES
 
 #: Largest departure of a time step from the trace's median step, as a fraction of it,
 #: still read as one uniform clock (timer jitter; stamps printed with few digits, 333 and

@@ -11,6 +11,8 @@ from pathlib import Path
 from typing import Literal
 
 from gms_comp.config import default_config_path, in_range, parse_section, read_toml
+from gms_comp.errors import ConfigError
+from gms_comp.physics.contact import contact_problem, hertz_contact
 from gms_comp.validation import MAX_BALL_LOADS
 
 #: Smallest groove radius over ball radius: the contact ellipse's aspect ratio grows
@@ -110,12 +112,28 @@ class BallConfig:
 
 
 def load_ball_config(path: str | Path | None = None) -> BallConfig:
-    """Load the physics sections of ``path`` (default: the seed's Table 1)."""
+    """Load the physics sections of ``path`` (default: the seed's Table 1), each ball
+    load checked against the Hertz model's validity (:func:`check_loads`)."""
     p = Path(path) if path is not None else default_config_path()
     doc = read_toml(p)
-    return BallConfig(
+    cfg = BallConfig(
         path=str(p),
         bearing=parse_section(doc, p, "bearing", BearingConfig),
         stand=parse_section(doc, p, "stand", StandConfig),
         model=parse_section(doc, p, "model", ModelConfig),
     )
+    check_loads(cfg, cfg.stand.ball_loads_N, "stand.ball_loads_N")
+    return cfg
+
+
+def check_loads(cfg: BallConfig, loads_N: tuple[float, ...], key: str) -> None:
+    """Refuse a ball load whose contact lies outside the Hertz model (a contact ellipse
+    as wide as the ball), naming the config file and ``key[i]``. Every reader of ball
+    loads (the ball model, the table's load family, ``gms-comp config``) calls it, so
+    they refuse the same configs."""
+    for i, load in enumerate(loads_N):
+        if load in loads_N[:i]:
+            continue  # each distinct load once
+        problem = contact_problem(hertz_contact(cfg.bearing, load), cfg.bearing.ball_radius_m)
+        if problem is not None:
+            raise ConfigError(cfg.path, f"{key}[{i}]", problem)

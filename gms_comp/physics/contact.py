@@ -17,13 +17,32 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 from scipy.special import ellipe, ellipk
 
-from gms_comp.physics.config import BearingConfig
+
+class BearingConfig(Protocol):
+    """What the contact reads of a ``[bearing]`` section
+    (:class:`gms_comp.physics.config.BearingConfig`, which reads its loads through
+    :func:`contact_problem`, so the contact cannot import it)."""
+
+    @property
+    def ball_radius_m(self) -> float: ...  # noqa: D102
+    @property
+    def raceway_radius_m(self) -> float: ...  # noqa: D102
+    @property
+    def youngs_modulus_ball_Pa(self) -> float: ...  # noqa: D102
+    @property
+    def youngs_modulus_raceway_Pa(self) -> float: ...  # noqa: D102
+    @property
+    def poisson_ratio_ball(self) -> float: ...  # noqa: D102
+    @property
+    def poisson_ratio_raceway(self) -> float: ...  # noqa: D102
+
 
 #: Largest contact semi-axis over the ball radius the model accepts. Hertz's half-space
 #: theory needs a contact small against the bodies; beyond half the ball radius the

@@ -144,14 +144,16 @@ class CompensatorConfig:
     feed: Literal["reference", "measured"] = "reference"
     look_ahead_cycles: int = field(default=1, metadata=in_range(0, 1000))
     table_path: str = ""
-    friction_level_scale: float = field(default=1.0, metadata=positive())
+    friction_level_scale: float = field(default=1.0, metadata=positive(100.0))
     current_limit_A: float = field(default=3.0, metadata=in_range(1e-3, 1e3))
-    rate_limit_A_per_s: float = field(default=2000.0, metadata=positive())
-    coulomb_velocity_band_m_s: float = field(default=1e-4, metadata=positive())
-    adaptation_rate_per_s: float = field(default=0.0, metadata=non_negative())
-    adaptation_min_velocity_m_s: float = field(default=2e-3, metadata=positive())
-    adaptation_max_inertial_share: float = field(default=0.3, metadata=positive())
-    adaptation_level_bounds: tuple[float, ...] = (0.5, 2.0)
+    rate_limit_A_per_s: float = field(default=2000.0, metadata=positive(1e7))
+    coulomb_velocity_band_m_s: float = field(default=1e-4, metadata=positive(1.0))
+    adaptation_rate_per_s: float = field(default=0.0, metadata=non_negative(1e4))
+    adaptation_min_velocity_m_s: float = field(default=2e-3, metadata=positive(10.0))
+    adaptation_max_inertial_share: float = field(default=0.3, metadata=positive(1.0))
+    adaptation_level_bounds: tuple[float, ...] = field(
+        default=(0.5, 2.0), metadata=positive(100.0, max_items=8)
+    )
 
     def problems(self) -> list[tuple[str, str]]:
         """`adaptation_level_bounds` is `[lo, hi]` with 0 < lo <= 1 <= hi."""

@@ -46,12 +46,11 @@ from gms_comp.arrays import FloatArray
 from gms_comp.config import config_hash, in_range, parse_section, read_toml
 from gms_comp.errors import ConfigError, InputError
 from gms_comp.gms import GmsParams, scaled, simulate, simulate_elements
-from gms_comp.physics.config import BallConfig
-from gms_comp.physics.contact import contact_problem, hertz_contact
+from gms_comp.physics.config import BallConfig, check_loads
 from gms_comp.physics.profiles import seed_fig7_profile
 from gms_comp.physics.transient import BallSetFriction
 from gms_comp.tables.table import Fidelity, GmsTable, LoadFamily, Scaling
-from gms_comp.validation import MAX_FAMILY_LOADS, MAX_TABLE_ELEMENTS
+from gms_comp.validation import MAX_FAMILY_LOADS, MAX_SEED, MAX_TABLE_ELEMENTS
 
 Path_ = tuple[FloatArray, FloatArray]
 Reference = tuple[Path_, FloatArray]
@@ -94,7 +93,7 @@ class TableConfig:
     curve_points: int = field(default=300, metadata=in_range(20, 100_000))
     sample_rate_Hz: float = field(default=20_000.0, metadata=in_range(100.0, 1e6))
     random_reversals: int = field(default=30, metadata=in_range(1, 10_000))
-    random_seed: int = 0
+    random_seed: int = field(default=0, metadata=in_range(0, MAX_SEED))
     family_loads_N: tuple[float, ...] = field(
         default=(), metadata=in_range(1e-3, 1e5, max_items=MAX_FAMILY_LOADS)
     )
@@ -313,9 +312,10 @@ def _at_ball_load(cfg: BallConfig, normal_load_N: float) -> BallConfig:
     return dataclasses.replace(cfg, stand=dataclasses.replace(cfg.stand, ball_loads_N=loads))
 
 
-def _check_request(cfg: BallConfig, n_elements: int, tc: TableConfig) -> None:
+def check_request(cfg: BallConfig, n_elements: int, tc: TableConfig) -> None:
     """Refuse an element count or family loads that bypassed the config's bounds
-    (command-line values), before any work is done."""
+    (command-line values), or family loads outside the Hertz model, before any work is
+    done (``gms-comp config`` calls it too)."""
     if isinstance(n_elements, bool) or not 1 <= n_elements <= MAX_TABLE_ELEMENTS:
         raise InputError(
             "elements", "", f"must be in [1, {MAX_TABLE_ELEMENTS}], got {n_elements!r}"
@@ -330,9 +330,7 @@ def _check_request(cfg: BallConfig, n_elements: int, tc: TableConfig) -> None:
             raise ConfigError(
                 cfg.path, f"table.family_loads_N[{i}]", f"must be in [0.001, 100000], got {load!r}"
             )
-        problem = contact_problem(hertz_contact(cfg.bearing, load), cfg.bearing.ball_radius_m)
-        if problem is not None:
-            raise ConfigError(cfg.path, f"table.family_loads_N[{i}]", problem)
+    check_loads(cfg, loads, "table.family_loads_N")
 
 
 def reduce_to_gms(
@@ -366,7 +364,7 @@ def reduce_to_gms(
     """
     tc = table_cfg if table_cfg is not None else load_table_config(cfg.path)
     n = n_elements if n_elements is not None else tc.elements
-    _check_request(cfg, n, tc)
+    check_request(cfg, n, tc)
     template = GmsParams(
         np.ones(1),
         np.ones(1),

@@ -57,9 +57,13 @@ from gms_comp.validation import (
     MAX_FAMILY_LOADS,
     MAX_TABLE_BYTES,
     MAX_TABLE_ELEMENTS,
+    JsonReader,
     check_count,
+    finite_float,
+    is_number,
     parse_json,
     read_text,
+    shown,
 )
 
 FORMAT = "gms-comp-table"
@@ -103,6 +107,29 @@ EXTENSION_CONTEXT_KEYS = {
     "standstill_speed_m_s": 1.0,
     "reversal_deadband_m": 1.0,
     "rest_band_m": 1.0,
+}
+
+# The schema of a table's numbers, one entry per field (dotted path): whether it must be
+# > 0 (else >= 0) and its upper bound. The reader checks each against it; the tests draw
+# values from it. ``NULLABLE`` fields may be null (infinite),
+# ``OPTIONAL`` ones absent too.
+NUMBERS: dict[str, tuple[bool, float]] = {
+    "velocity_level.slip_level": (True, MAX_SLIP_LEVEL),
+    "velocity_level.transition_velocity_m_s": (True, MAX_TRANSITION_VELOCITY_M_S),
+    "velocity_level.transition_exponent": (True, MAX_TRANSITION_EXPONENT),
+    "velocity_level.transition_tail": (True, MAX_TRANSITION_TAIL),
+    "attraction_rate_per_s": (True, MAX_ATTRACTION_RATE_PER_S),
+    "viscous_Ns_per_m": (False, MAX_VISCOUS_NS_PER_M),
+    "fidelity.rms_rel": (False, math.inf),
+    "fidelity.max_rel": (False, math.inf),
+}
+NULLABLE = frozenset({"velocity_level.transition_tail", "attraction_rate_per_s"})
+#: Fields that may be left out (read as null).
+OPTIONAL = frozenset({"velocity_level.transition_tail"})
+#: ... and of its per-element lists (one number per element).
+VECTORS: dict[str, tuple[bool, float]] = {
+    "stiffness_N_per_m": (True, MAX_STIFFNESS_N_PER_M),
+    "limit_N": (False, MAX_FORCE_N),
 }
 
 
@@ -241,7 +268,7 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
     if not isinstance(doc, dict):
         raise r.error("", "must be a JSON object")
     if doc.get("format") != FORMAT:
-        raise r.error("format", f"must be {FORMAT!r}, got {doc.get('format')!r}")
+        raise r.error("format", f"must be {FORMAT!r}, got {shown(doc.get('format'))}")
     fv = r.get(doc, "format_version")
     if fv in (1, 2, 3) and not isinstance(fv, bool):
         raise r.error(
@@ -250,55 +277,38 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
             "remake it (gms-comp table, or gms-comp diagnose --table)",
         )
     if fv != FORMAT_VERSION or isinstance(fv, bool):
-        raise r.error("format_version", f"unknown version {fv!r} (this reader knows 4)")
+        raise r.error("format_version", f"unknown version {shown(fv)} (this reader knows 4)")
     version = r.version(doc, "gms_comp_version")
     units = r.get(doc, "units")
     if units != UNITS:
-        raise r.error("units", f"must be {UNITS}, got {units!r}")
+        raise r.error("units", f"must be {UNITS}, got {shown(units)}")
     n = r.get(doc, "elements")
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise r.error("elements", f"must be a positive integer, got {n!r}")
+        raise r.error("elements", f"must be a positive integer, got {shown(n)}")
     check_count(where, "elements", n, MAX_TABLE_ELEMENTS, "elements", error=TableError)
-    k = r.vector(
-        r.get(doc, "stiffness_N_per_m"), "stiffness_N_per_m", n, True, MAX_STIFFNESS_N_PER_M
-    )
-    w = r.vector(r.get(doc, "limit_N"), "limit_N", n, False, MAX_FORCE_N)
-    level = r.get(doc, "velocity_level")
-    rate = r.get(doc, "attraction_rate_per_s")
-    tail = level.get("transition_tail") if isinstance(level, dict) else None
-    law = level.get("limit_follows_level", False) if isinstance(level, dict) else False
-    if not isinstance(law, bool) or (law and rate is not None):
+    k, w = (r.array(r.get(doc, key), key, n, *VECTORS[key]) for key in VECTORS)
+    numbers = {key: r.schema_number(doc, key) for key in NUMBERS}
+    law = r.get(doc, "velocity_level").get("limit_follows_level", False)
+    if not isinstance(law, bool) or (law and numbers["attraction_rate_per_s"] != math.inf):
         why = "must be true or false" if not isinstance(law, bool) else "needs a null attraction"
-        raise r.error("velocity_level.limit_follows_level", f"{why}, got {law!r}")
+        raise r.error("velocity_level.limit_follows_level", f"{why}, got {shown(law)}")
     params = GmsParams(
         k,
         w,
-        slip_level=r.number(level, "velocity_level.slip_level", True, MAX_SLIP_LEVEL),
-        transition_velocity_m_s=r.number(
-            level, "velocity_level.transition_velocity_m_s", True, MAX_TRANSITION_VELOCITY_M_S
-        ),
-        transition_exponent=r.number(
-            level, "velocity_level.transition_exponent", True, MAX_TRANSITION_EXPONENT
-        ),
-        attraction_rate_per_s=math.inf
-        if rate is None
-        else r.number(doc, "attraction_rate_per_s", True, MAX_ATTRACTION_RATE_PER_S),
-        viscous_Ns_per_m=r.number(doc, "viscous_Ns_per_m", False, MAX_VISCOUS_NS_PER_M),
-        transition_tail=math.inf
-        if tail is None
-        else r.number(level, "velocity_level.transition_tail", True, MAX_TRANSITION_TAIL),
+        slip_level=numbers["velocity_level.slip_level"],
+        transition_velocity_m_s=numbers["velocity_level.transition_velocity_m_s"],
+        transition_exponent=numbers["velocity_level.transition_exponent"],
+        attraction_rate_per_s=numbers["attraction_rate_per_s"],
+        viscous_Ns_per_m=numbers["viscous_Ns_per_m"],
+        transition_tail=numbers["velocity_level.transition_tail"],
         limit_follows_level=law,
     )
     source = r.get(doc, "source")
-    fidelity = r.get(doc, "fidelity")
     return GmsTable(
         params=params,
         source_config=r.string(source, "source.config"),
         source_sha256=r.sha256(source, "source.sha256"),
-        fidelity=Fidelity(
-            rms_rel=r.number(fidelity, "fidelity.rms_rel", False, math.inf),
-            max_rel=r.number(fidelity, "fidelity.max_rel", False, math.inf),
-        ),
+        fidelity=Fidelity(rms_rel=numbers["fidelity.rms_rel"], max_rel=numbers["fidelity.max_rel"]),
         version=version,
         load_family=r.load_family(doc, n),
         extensions=r.extensions(doc),
@@ -307,52 +317,32 @@ def table_from_dict(doc: Any, where: str) -> GmsTable:
     )
 
 
-class _Reader:
+class _Reader(JsonReader):
     """Field accessors that raise :class:`TableError` naming the file and the field."""
 
     def __init__(self, where: str) -> None:
+        super().__init__(where, TableError)
         self.where = where
 
     def error(self, key: str, reason: str) -> TableError:
+        """The refusal of field ``key`` (a :class:`TableError`)."""
         return TableError(self.where, key, reason)
 
-    def get(self, obj: Any, key: str) -> Any:
-        """``obj[last part of key]``; a missing key is reported with its full name."""
+    def schema_number(self, doc: Any, key: str) -> float:
+        """Field ``key`` of :data:`NUMBERS` (a null one of :data:`NULLABLE` is infinite)."""
+        obj = doc
+        for part in key.split(".")[:-1]:
+            obj = self.get(obj, part)
         name = key.rsplit(".", 1)[-1]
-        if not isinstance(obj, dict):
-            parent = key.rsplit(".", 1)[0]
-            raise self.error(parent, "must be a JSON object")
-        if name not in obj:
-            raise self.error(key, "missing")
-        return obj[name]
+        nullable = key in NULLABLE and isinstance(obj, dict) and obj.get(name) is None
+        if nullable and (name in obj or key in OPTIONAL):
+            return math.inf
+        positive, hi = NUMBERS[key]
+        return self.number(obj, key, positive, hi)
 
-    def number(self, obj: Any, key: str, positive: bool, hi: float) -> float:
-        return self.check_number(self.get(obj, key), key, positive, hi)
-
-    def check_number(self, value: Any, key: str, positive: bool, hi: float) -> float:
-        """A finite number, > 0 when ``positive`` else >= 0, and <= ``hi``."""
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.error(key, f"must be a number, got {value!r}")
-        bad = value <= 0 if positive else value < 0
-        if not math.isfinite(value) or bad:
-            raise self.error(key, f"must be {'> 0' if positive else '>= 0'}, got {value!r}")
-        if value > hi:
-            raise self.error(key, f"must be <= {hi:g}, got {value!r}")
-        return float(value)
-
-    def vector(self, value: Any, key: str, n: int | None, positive: bool, hi: float) -> FloatArray:
-        """A list of ``n`` numbers (any non-zero length when ``n`` is None)."""
-        if not isinstance(value, list) or not value or (n is not None and len(value) != n):
-            raise self.error(key, f"must be a list of {n or 'some'} numbers")
-        return np.array(
-            [self.check_number(v, f"{key}[{i}]", positive, hi) for i, v in enumerate(value)]
-        )
-
-    def string(self, obj: Any, key: str) -> str:
-        value = self.get(obj, key)
-        if not isinstance(value, str):
-            raise self.error(key, f"must be a string, got {value!r}")
-        return value
+    def array(self, value: Any, key: str, n: int | None, positive: bool, hi: float) -> FloatArray:
+        """:meth:`vector` as an array."""
+        return np.array(self.vector(value, key, n, positive, hi))
 
     def sha256(self, obj: Any, key: str) -> str:
         value = self.string(obj, key)
@@ -366,7 +356,9 @@ class _Reader:
         ours = _VERSION.match(__version__)
         assert ours is not None
         if found is None or found.group(1) != ours.group(1):
-            raise self.error(key, f"unknown version {value!r} (this is gms-comp {__version__})")
+            raise self.error(
+                key, f"unknown version {shown(value)} (this is gms-comp {__version__})"
+            )
         return value
 
     def load_family(self, doc: Any, n: int) -> LoadFamily | None:
@@ -377,7 +369,7 @@ class _Reader:
         loads = self.get(family, key)
         if isinstance(loads, list):
             check_count(self.where, key, len(loads), MAX_FAMILY_LOADS, "loads", error=TableError)
-        loads = self.vector(loads, key, None, True, MAX_FORCE_N)
+        loads = self.array(loads, key, None, True, MAX_FORCE_N)
         if np.any(np.diff(loads) <= 0):
             raise self.error(key, "must be increasing")
         rows = []
@@ -391,7 +383,7 @@ class _Reader:
                 raise self.error(key, f"must hold {loads.size} rows")
             rows.append(
                 np.array(
-                    [self.vector(v, f"{key}[{i}]", n, positive, hi) for i, v in enumerate(value)]
+                    [self.array(v, f"{key}[{i}]", n, positive, hi) for i, v in enumerate(value)]
                 )
             )
         return LoadFamily(loads, rows[0], rows[1])
@@ -400,8 +392,8 @@ class _Reader:
         found, key = self.get(doc, "scaled_by"), "scaled_by.ball_loads_N"
         if found is None:
             return None
-        loads = self.vector(self.get(found, key), key, None, True, MAX_FORCE_N).tolist()
-        return Scaling(self.number(found, "scaled_by.ball_sets", False, MAX_FORCE_N), tuple(loads))
+        loads = self.vector(self.get(found, key), key, None, True, MAX_FORCE_N)
+        return Scaling(self.number(found, "scaled_by.ball_sets", True, MAX_FORCE_N), tuple(loads))
 
     def extension_context(self, doc: Any) -> dict[str, float] | None:
         context = doc.get("extension_context")
@@ -432,7 +424,7 @@ class _Reader:
             key = f"extensions.{i}"
             effect = self.string(item, f"{key}.effect")
             if not _NAME.match(effect):
-                raise self.error(f"{key}.effect", f"must be a name, got {effect!r}")
+                raise self.error(f"{key}.effect", f"must be a name, got {shown(effect)}")
             params = self.get(item, f"{key}.parameters")
             if not isinstance(params, dict):
                 raise self.error(f"{key}.parameters", "must be a JSON object")
@@ -441,10 +433,11 @@ class _Reader:
                 pkey = f"{key}.parameters.{name}"
                 if not _NAME.match(name):
                     raise self.error(pkey, "parameter names must be names")
-                if isinstance(value, bool) or not isinstance(value, (int, float)):
-                    raise self.error(pkey, f"must be a number, got {value!r}")
-                if not math.isfinite(value) or abs(value) > 1e12:
-                    raise self.error(pkey, f"must be finite and within +-1e12, got {value!r}")
-                values[name] = float(value)
+                if not is_number(value):
+                    raise self.error(pkey, f"must be a number, got {shown(value)}")
+                number = finite_float(value)
+                if number is None or abs(number) > 1e12:
+                    raise self.error(pkey, f"must be finite and within +-1e12, got {shown(value)}")
+                values[name] = number
             out.append(Extension(effect, values))
         return tuple(out)

@@ -29,9 +29,9 @@ from gms_comp.app.live.arguments import add_bus_arguments, bus_config
 from gms_comp.app.live.commission import commission
 from gms_comp.app.live.recording import nc_on_bus
 from gms_comp.app.signals import stop_requests
+from gms_comp.arguments import output_dir, output_file
 from gms_comp.errors import BusError
 from gms_comp.tables.table import write_table
-from gms_comp.validation import output_dir, output_file
 from sim.scenarios import load_scenario
 
 

@@ -24,19 +24,19 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from firmware_bridge.settings import CanConfig
-from gms_comp.app.scaleout import ScaleoutConfig
+from firmware_bridge.settings import CanConfig, load_can_config
+from gms_comp.app.scaleout import ScaleoutConfig, load_scaleout
+from gms_comp.arguments import input_file, output_file
 from gms_comp.atomic import write_text
 from gms_comp.config import default_config_path, parse_section, read_toml
-from gms_comp.measured.diagnosis.run import DiagnosisConfig
-from gms_comp.physics.config import BearingConfig, ModelConfig, StandConfig
+from gms_comp.measured.diagnosis.run import DiagnosisConfig, load_diagnosis_config
+from gms_comp.physics.config import BearingConfig, ModelConfig, StandConfig, load_ball_config
 from gms_comp.runtime.observer import CompensatorConfig
-from gms_comp.tables.reduction import TableConfig
-from gms_comp.validation import input_file, output_file
+from gms_comp.tables.reduction import TableConfig, check_request, load_table_config
 from sim.controller import ControllerConfig
 from sim.machine import MachineConfig, load_machine, machine_section
 from sim.plant import PlantConfig
-from sim.scenarios import ScenarioConfig
+from sim.scenarios import ScenarioConfig, load_scenario
 
 # Every [section] of a gms-comp config and the dataclass that reads it, in file order.
 SECTIONS: dict[str, type[Any]] = {
@@ -122,10 +122,27 @@ def accepted_values(cls: type[Any], f: dataclasses.Field[Any]) -> str:
     return f"{kind}, {text}" if text else kind
 
 
+def check(path: Path) -> None:
+    """Refuse ``path`` wherever a command would: every command's own loader runs on it
+    (the ball model's with its contact check, the table's request, the scenario's with
+    its durations, cycles, trajectory and table file, the CAN link's, the diagnosis's,
+    the scale-out's, the simulated machine's), so ``config`` says valid exactly when
+    none of them refuses."""
+    ball = load_ball_config(path)
+    table = load_table_config(path)
+    check_request(ball, table.elements, table)
+    load_scenario(path)
+    load_can_config(path)
+    load_diagnosis_config(path)
+    load_scaleout(read_toml(path), path)
+    load_machine(path)  # [machine]'s effect parameters, beyond its own keys
+
+
 def keys(path: str | Path | None = None) -> list[Key]:
     """Every key of every section, with its value in ``path`` (default: the packaged config).
 
-    Each section is parsed as the commands parse it, so a bad file raises the same
+    Each section is parsed as the commands parse it and the file is checked as every
+    command checks it (:func:`check`), so a bad file raises the same
     :class:`~gms_comp.errors.ConfigError`.
     """
     packaged = default_config_path()
@@ -133,9 +150,13 @@ def keys(path: str | Path | None = None) -> list[Key]:
     doc = read_toml(p)
     packaged_doc = doc if p == packaged else read_toml(packaged)
     found = []
-    load_machine(p)  # [machine]'s effect parameters, beyond its own keys
+    parsed_sections = {
+        section: parse_section(machine_section(doc), p, section, cls)
+        for section, cls in SECTIONS.items()
+    }
+    check(p)
     for section, cls in SECTIONS.items():
-        parsed = parse_section(machine_section(doc), p, section, cls)
+        parsed = parsed_sections[section]
         packaged_values = parse_section(machine_section(packaged_doc), packaged, section, cls)
         for f in dataclasses.fields(cls):
             required = f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING

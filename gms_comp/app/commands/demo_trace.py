@@ -21,12 +21,13 @@ from typing import Any
 
 import numpy as np
 
+from gms_comp.arguments import int_in_range, output_file
 from gms_comp.arrays import FloatArray
 from gms_comp.atomic import write_text
 from gms_comp.gms import GmsParams, scaled
 from gms_comp.measured.traces import Trace
 from gms_comp.runtime import effects as fx
-from gms_comp.validation import output_file
+from gms_comp.validation import MAX_SEED
 from sim import tracegen
 
 # The main parameter of each spec catalogue effect, as the diagnosis must recover it.
@@ -139,7 +140,12 @@ def register(subparsers: Any) -> None:
         default="none",
         help="the catalogue effect to hide in the trace (default: none)",
     )
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument(
+        "--seed",
+        type=int_in_range(0, MAX_SEED),
+        default=0,
+        help=f"random seed, 0 to {MAX_SEED} (default 0)",
+    )
     p.add_argument(
         "--scale",
         type=float,

@@ -19,8 +19,11 @@ import numpy as np
 from tqdm import tqdm
 
 from gms_comp.app.fleet import FleetJob, diagnose_fleet, format_table, report_names
-from gms_comp.app.scaleout import add_cluster_arguments, cli_tls, dask_client
-from gms_comp.config import config_hash, read_toml
+from gms_comp.app.report_set import input_record, write_report_set
+from gms_comp.app.scaleout import add_cluster_arguments, cli_client
+from gms_comp.arguments import input_file, output_file, replaced_dir
+from gms_comp.atomic import SET_MANIFEST, write_text
+from gms_comp.config import config_hash, default_config_path, read_toml
 from gms_comp.errors import GmsCompError
 from gms_comp.gms import GmsParams
 from gms_comp.measured.diagnosis import emps
@@ -33,7 +36,6 @@ from gms_comp.physics.config import load_ball_config
 from gms_comp.runtime.effects import effect_to_dict
 from gms_comp.tables.reduction import reduce_to_gms
 from gms_comp.tables.table import Extension, Fidelity, GmsTable, read_table, write_table
-from gms_comp.validation import output_dir, output_file
 
 COLUMNS_HELP = (
     "A canonical CSV has a header row and one sample per row, SI units: time_s (s, strictly "
@@ -71,11 +73,13 @@ def register(subparsers: Any) -> None:
         "traces",
         nargs="+",
         metavar="TRACE",
+        type=input_file,
         help="canonical CSV, EMPS .mat, or any .csv/.mat with --map",
     )
     add_cluster_arguments(p)
     p.add_argument(
         "--config",
+        type=input_file,
         help=(
             "config file: [diagnosis] section; with [bearing] and [stand] sections its ball "
             "model is reduced to a GMS table, calibrated as the baseline"
@@ -84,6 +88,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--table-in",
         metavar="TABLE",
+        type=input_file,
         help="GMS table to calibrate as the baseline (its level, presliding, velocity level)",
     )
     p.add_argument(
@@ -91,7 +96,12 @@ def register(subparsers: Any) -> None:
         choices=("friction", "drive"),
         help="what force_N is (default: drive for EMPS files, else friction)",
     )
-    p.add_argument("--validate", metavar="TRACE2", help="held-out trace (else blocks of TRACE)")
+    p.add_argument(
+        "--validate",
+        metavar="TRACE2",
+        type=input_file,
+        help="held-out trace (else blocks of TRACE)",
+    )
     p.add_argument("--map", action="append", default=[], metavar="COLUMN=EXPR", help=MAP_HELP)
     p.add_argument(
         "--segment",
@@ -105,7 +115,7 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--report",
         metavar="DIR",
-        type=output_dir,
+        type=replaced_dir,
         help="write plots, index.html and the extended table into this folder",
     )
     p.add_argument(
@@ -114,7 +124,8 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--closed-loop",
         nargs="?",
-        const="",
+        const=default_config_path(),  # a Path: argparse passes it on as it is
+        type=input_file,
         metavar="SCENARIO",
         help=(
             "simulate the axis with the diagnosed friction and compare the compensator with "
@@ -138,7 +149,7 @@ def _progress(enabled: bool) -> Iterator[Callable[[str], None]]:
 def run(args: argparse.Namespace) -> int:
     """Diagnose one trace (or a fleet) and report."""
     mapping = parse_mapping(args.map, "--map") if args.map else None
-    if len(args.traces) > 1 or args.scheduler:
+    if len(args.traces) > 1 or args.scheduler or args.cluster_config:
         return _run_fleet(args, mapping)
     args.trace = args.traces[0]
     trace = load_trace(args.trace, mapping, segment=args.segment)
@@ -159,22 +170,19 @@ def run(args: argparse.Namespace) -> int:
             closed_loop_gain,  # the simulated axis when asked
         )
 
-        doc["closed_loop"] = closed_loop_gain(result, args.closed_loop or None)
-    table_path = args.table or (Path(args.report) / "extended.table.json" if args.report else None)
+        doc["closed_loop"] = closed_loop_gain(result, args.closed_loop)
     written: list[str] = []
     if args.report:
-        Path(args.report).mkdir(parents=True, exist_ok=True)
-    if table_path is not None:
-        write_table(table_path, extended_table(result, args.trace))
-        doc["table"] = str(table_path)
-        written.append(str(table_path))
-    if args.report:
-        from gms_comp.measured.diagnosis.report import (
-            write_report,  # matplotlib only when asked for
+        files = write_report_set(
+            result, args.report, _inputs(args), extended_table(result, args.trace), args.table
         )
-
-        doc["report"] = [str(p) for p in write_report(result, args.report)]
-        written.extend(doc["report"])
+        doc["table"] = str(files[0])
+        doc["report"] = [str(p) for p in files[1:]]
+        written = [str(p) for p in files]
+    elif args.table:
+        write_table(args.table, extended_table(result, args.trace))
+        doc["table"] = str(args.table)
+        written.append(str(args.table))
     if args.json:
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
         for path in written:
@@ -263,6 +271,19 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
     return "\n".join(lines)
 
 
+def _inputs(args: argparse.Namespace) -> dict[str, Any]:
+    """The run's input files, each with its path and SHA-256 (named by the report)."""
+    return input_record(
+        {
+            "trace": args.trace,
+            "validate": args.validate,
+            "config": args.config,
+            "table_in": args.table_in,
+            "closed_loop": args.closed_loop,
+        }
+    )
+
+
 def _baseline_table(args: argparse.Namespace) -> GmsParams | None:
     """The GMS table to calibrate: ``--table-in``, else the ball model of a ``--config``
     that describes a bearing, else none (the free NNLS GMS)."""
@@ -300,9 +321,14 @@ def _run_fleet(args: argparse.Namespace, mapping: Mapping[str, str] | None) -> i
     if args.serial:
         fleet = diagnose_fleet(jobs)
     else:
-        with dask_client(args.scheduler, args.workers, cli_tls(args)) as client:
+        with cli_client(args) as client:
             fleet = diagnose_fleet(jobs, client=client)
     written = [p for row in fleet["traces"] for p in row.get("report", [])]
+    if args.report:  # the fleet's index, written last: each trace's report is its own set
+        index = {"format": "gms-comp-fleet-report", "version": 1, "traces": [
+            {k: row.get(k) for k in ("trace", "status", "report")} for row in fleet["traces"]
+        ]}  # fmt: skip
+        written.append(str(write_text(Path(args.report) / SET_MANIFEST, json.dumps(index) + "\n")))
     if args.json:
         sys.stdout.write(json.dumps(fleet, indent=2) + "\n")
     else:

@@ -9,10 +9,10 @@ import sys
 import zlib
 from typing import Any
 
+from gms_comp.arguments import input_file, output_dir
 from gms_comp.runtime.export_c import export_c
 from gms_comp.runtime.observer import check_table_fits
 from gms_comp.tables.table import read_table
-from gms_comp.validation import input_file, output_dir
 from sim.scenarios import load_scenario
 
 #: The current-loop rate the observer is generated for by default, Hz.

@@ -5,12 +5,11 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 from typing import Any
 
+from gms_comp.arguments import input_file, output_dir
 from gms_comp.physics.ball_model import SteadyResult, steady_state
 from gms_comp.physics.config import BallConfig, load_ball_config
-from gms_comp.validation import output_dir
 
 
 def register(subparsers: Any) -> None:
@@ -24,7 +23,7 @@ def register(subparsers: Any) -> None:
         ),
     )
     parser.add_argument(
-        "config", nargs="?", type=Path, help="config TOML (default: the seed's Table 1)"
+        "config", nargs="?", type=input_file, help="config TOML (default: the seed's Table 1)"
     )
     parser.add_argument(
         "--json", action="store_true", help="print one JSON object (SI units) on stdout only"

@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from gms_comp.arguments import output_file
 from gms_comp.atomic import write_text
-from gms_comp.validation import output_file
 from sim.tracegen import identification_profile
 
 # Sample rates a test stand records at (Hz): the profile lasts about 40 s, so the upper

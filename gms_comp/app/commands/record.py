@@ -33,7 +33,7 @@ from gms_comp.app.live.recording import (
     write_recording,
 )
 from gms_comp.app.signals import stop_requests
-from gms_comp.validation import output_file
+from gms_comp.arguments import output_file
 from sim.scenarios import load_scenario
 
 MAX_LISTEN_S = 3600.0

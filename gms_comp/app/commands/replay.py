@@ -21,8 +21,8 @@ import numpy as np
 
 from gms_comp.app import replay as rp
 from gms_comp.app import replay_compensation as rc
+from gms_comp.arguments import float_in_range, input_file, plot_file
 from gms_comp.atomic import atomic_path
-from gms_comp.validation import input_file, output_file
 from sim.link import DirectLink, FeedforwardLink
 from sim.position_loop import LoopRun
 
@@ -89,7 +89,7 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument(
         "--reversal-deadband",
-        type=float,
+        type=float_in_range(0.0, rp.MAX_REVERSAL_DEADBAND_M),
         default=rp.REVERSAL_DEADBAND_M,
         metavar="M",
         help=(
@@ -106,7 +106,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     p.add_argument(
         "--plot",
-        type=output_file,
+        type=plot_file,
         metavar="PNG",
         help="plot errors and force over time (and <stem>_compensation<suffix>)",
     )
@@ -124,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
         controller = rp.parse_controller(args.config)
     if args.time_base is None:
         args.time_base = "data" if args.loop == "record" else "simulink"
+    rp.load_model(args.model, args.reversal_deadband)  # a bad model is refused before the work
     record = rp.load_record(args.trace, controller, args.time_base, args.loop)
     held = record.loop.period_s if args.loop == "record" else None
     choice = rp.load_model(args.model, args.reversal_deadband, held)

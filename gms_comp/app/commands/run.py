@@ -21,10 +21,10 @@ from typing import Any
 from gms_comp.app.live.arguments import add_bus_arguments, bus_config, checked_duration
 from gms_comp.app.live.follow import follow
 from gms_comp.app.signals import stop_requests
+from gms_comp.arguments import input_file, output_file
 from gms_comp.atomic import write_text
 from gms_comp.runtime.observer import FrictionObserver, check_table_fits
 from gms_comp.tables.table import read_table
-from gms_comp.validation import input_file, output_file
 from sim.scenarios import load_scenario
 
 MAX_DURATION_S = 24 * 3600.0

@@ -32,9 +32,9 @@ from typing import Any
 
 import numpy as np
 
+from gms_comp.arguments import input_file, output_file, plot_file
 from gms_comp.atomic import atomic_path, write_text
 from gms_comp.errors import ScenarioError
-from gms_comp.validation import input_file, output_file
 from sim.closed_loop import RunResult
 from sim.link import DirectLink, FeedforwardLink
 from sim.scenarios import (
@@ -71,7 +71,7 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument(
         "--plot",
-        type=output_file,
+        type=plot_file,
         metavar="PNG",
         help=(
             "plot the following error around a reversal (a two-axis circle also writes "

@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import math
 import sys
 from collections import Counter
 from collections.abc import Callable
@@ -20,14 +19,23 @@ from pathlib import Path
 from typing import Any
 
 from firmware_bridge.faults import parse_fault
+from firmware_bridge.frame_log import LOG_SUFFIXES
 from firmware_bridge.profiles import PROFILES
 from firmware_bridge.realtime import stream_on
 from firmware_bridge.session import FeedforwardSource, Rig
 from firmware_bridge.settings import CanConfig, load_can_config
 from gms_comp.app.signals import stop_requests
+from gms_comp.arguments import (
+    float_in_range,
+    input_file,
+    int_in_range,
+    output_file,
+    suffixed_file,
+)
 from gms_comp.atomic import atomic_path, write_text
 from gms_comp.config import default_config_path
-from gms_comp.validation import InputError, output_file
+from gms_comp.errors import InputError
+from gms_comp.validation import MAX_SEED
 
 MAX_DURATION_S = 3600.0
 MAX_STREAM_CYCLES = 1_000_000
@@ -47,13 +55,13 @@ def register(subparsers: Any) -> None:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("config", nargs="?", type=Path, help="config file (default: Table 1)")
+    p.add_argument("config", nargs="?", type=input_file, help="config file (default: Table 1)")
     p.add_argument("--profile", choices=tuple(PROFILES), help="override [can] profile")
     p.add_argument("--interface", help="python-can interface (virtual, socketcan, pcan, ...)")
     p.add_argument("--channel", help="python-can channel")
     p.add_argument(
         "--duration",
-        type=float,
+        type=float_in_range(0.0, MAX_DURATION_S, lo_open=True),
         default=2.0,
         metavar="S",
         help=f"seconds of streaming, 0 < S <= {MAX_DURATION_S:g} (2)",
@@ -72,7 +80,12 @@ def register(subparsers: Any) -> None:
         help="a drive is already on the bus (a real one, or python -m firmware_bridge.emulator):"
         " do not start the built-in emulator; drive-side figures are then null",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the fault injector")
+    p.add_argument(
+        "--seed",
+        type=int_in_range(0, MAX_SEED),
+        default=0,
+        help=f"seed of the fault injector, 0 to {MAX_SEED} (0)",
+    )
     p.add_argument(
         "--json", action="store_true", help="print the report as JSON on stdout, nothing else"
     )
@@ -80,7 +93,10 @@ def register(subparsers: Any) -> None:
         "-o", "--output", type=output_file, metavar="FILE.json", help="write the JSON report"
     )
     p.add_argument(
-        "--log", type=output_file, metavar="FILE", help="log all frames (.blf, .asc, .csv, ...)"
+        "--log",
+        type=suffixed_file(LOG_SUFFIXES, "frame log"),
+        metavar="FILE",
+        help=f"log all frames ({', '.join(LOG_SUFFIXES)})",
     )
     p.set_defaults(func=run)
 
@@ -99,10 +115,6 @@ def run(args: argparse.Namespace) -> int:
         if v is not None
     }
     cfg = replace(cfg, **overrides)
-    if not (math.isfinite(args.duration) and 0 < args.duration <= MAX_DURATION_S):
-        raise InputError(
-            "--duration", "", f"must be in (0, {MAX_DURATION_S:g}] s, got {args.duration:g}"
-        )
     cycles = args.duration / cfg.cycle_period_s
     if cycles > MAX_STREAM_CYCLES:
         raise InputError(
@@ -112,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
             f"{cycles:.3g} cycles, more than {MAX_STREAM_CYCLES:,} (an audit record each)",
         )
     faults = [parse_fault(spec) for spec in args.fault]
+    _check_scenario(config_path)  # a config the observer cannot follow: refused before the bus
     with contextlib.ExitStack() as files:
         stop = files.enter_context(stop_requests())
         log = None if args.log is None else files.enter_context(atomic_path(args.log))
@@ -204,6 +217,12 @@ def summary(report: dict[str, Any], cfg: CanConfig) -> str:
     if report.get("foreign_frames"):
         lines.append(f"WARNING: {report['foreign_frames']} frames of another node with our ids")
     return "\n".join(lines)
+
+
+def _check_scenario(config_path: Path) -> None:
+    from sim.scenarios import load_scenario  # the simulator only when streaming
+
+    load_scenario(config_path)
 
 
 def gms_observer_source(config_path: Path, cfg: CanConfig, duration_s: float) -> FeedforwardSource:

@@ -8,9 +8,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from gms_comp.app.scaleout import add_cluster_arguments, cli_tls, dask_client, tls_files
+from gms_comp.app.scaleout import add_cluster_arguments, cli_client
 from gms_comp.app.sweep import load_sweep, run_sweep
-from gms_comp.validation import output_dir
+from gms_comp.arguments import input_file, output_dir
 
 
 def register(subparsers: Any) -> None:
@@ -20,13 +20,16 @@ def register(subparsers: Any) -> None:
         help="generate a family of tables over a parameter grid (Dask)",
         description=(
             "Generate one GMS table per point of the grid in SWEEP.toml, on a local Dask "
-            "cluster (listening on 127.0.0.1 only) or on an existing one (--scheduler; use "
-            "tls:// with certificates: a scheduler runs any code sent to it). A rerun into "
-            "the same folder resumes: points already done are not computed again."
+            "cluster (listening on 127.0.0.1 only) or on an existing one (--scheduler, tls:// "
+            "with certificates: a scheduler runs any code sent to it; never from the sweep "
+            "file). A rerun into the same folder resumes: points whose whole config is "
+            "unchanged are not computed again."
         ),
     )
-    parser.add_argument("sweep_file", type=Path, metavar="SWEEP.toml", help="sweep definition")
-    add_cluster_arguments(parser, "[scaleout] scheduler of the sweep file, else a local cluster")
+    parser.add_argument(
+        "sweep_file", type=input_file, metavar="SWEEP.toml", help="sweep definition"
+    )
+    add_cluster_arguments(parser)
     parser.add_argument(
         "-o",
         "--output",
@@ -44,14 +47,7 @@ def run(args: argparse.Namespace) -> int:
     if args.serial:
         manifest = run_sweep(spec, args.output)
     else:
-        cfg = spec.scaleout
-        tls = cli_tls(args)
-        if tls is None:
-            tls = tls_files(
-                cfg.tls_ca_file, cfg.tls_cert, cfg.tls_key, source=f"{spec.path}: scaleout"
-            )
-        scheduler = args.scheduler or cfg.scheduler or None
-        with dask_client(scheduler, args.workers, tls) as client:
+        with cli_client(args) as client:
             manifest = run_sweep(spec, args.output, client=client)
     points = manifest["points"]
     if args.json:
@@ -65,6 +61,13 @@ def run(args: argparse.Namespace) -> int:
 def _print_summary(points: list[dict[str, Any]], out: Path) -> None:
     ok = [p for p in points if p["status"] == "ok"]
     print(f"{len(ok)}/{len(points)} tables in {out} (manifest: {out / 'manifest.json'})")
+    resumed = sum(1 for p in points if p.get("resumed"))
+    changed = sum(1 for p in points if "note" in p)
+    if resumed or changed:
+        print(
+            f"{resumed} resumed (their whole config unchanged), "
+            f"{changed} recomputed (config changed since their table was made)"
+        )
     if ok:
         worst = max(ok, key=lambda p: p["fidelity"]["rms_rel"])
         print(f"worst fidelity: rms_rel {worst['fidelity']['rms_rel']:.2%} at {worst['values']}")

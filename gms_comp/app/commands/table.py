@@ -7,13 +7,12 @@ import dataclasses
 import json
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
+from gms_comp.arguments import input_file, output_file
 from gms_comp.physics.config import load_ball_config
 from gms_comp.tables.reduction import load_table_config, reduce_to_gms
 from gms_comp.tables.table import write_table
-from gms_comp.validation import output_file
 from sim.scenarios import load_plant
 
 # The [table] elements range of the config (gms_comp.tables.reduction.TableConfig).
@@ -53,7 +52,7 @@ def register(subparsers: Any) -> None:
         ),
     )
     parser.add_argument(
-        "config", nargs="?", type=Path, help="config TOML (default: the seed's Table 1)"
+        "config", nargs="?", type=input_file, help="config TOML (default: the seed's Table 1)"
     )
     parser.add_argument(
         "-o", "--output", type=output_file, required=True, help="table file to write (JSON)"

@@ -8,8 +8,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from firmware_bridge.settings import CanConfig, load_can_config
+from gms_comp.arguments import input_file
 from gms_comp.config import default_config_path
-from gms_comp.validation import InputError, input_file
+from gms_comp.validation import InputError
 
 
 def add_bus_arguments(p: argparse.ArgumentParser) -> None:

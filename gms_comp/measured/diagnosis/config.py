@@ -82,7 +82,7 @@ class DiagnosisConfig:
     # over 3 x the noise and 9 % of the sliding force. The fraction also bounds what the
     # residual as a whole holds above the noise where it stands 3 x the noise or more
     # (structure.UNEXPLAINED_RATIO).
-    unknown_ratio: float = field(default=1.5, metadata=positive())
+    unknown_ratio: float = field(default=1.5, metadata=positive(1e3))
     unknown_fraction: float = field(default=0.03, metadata=in_range(0.0, 1.0))
     standstill_speed_fraction: float = field(default=0.01, metadata=in_range(0.0, 1.0))
     # A reversal is a retreat of the measured position (not its low-pass, which rings at

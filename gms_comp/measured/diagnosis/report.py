@@ -4,6 +4,7 @@ by phase; measured and model force) and an index.html with the plots and the tab
 from __future__ import annotations
 
 import html
+from collections.abc import Mapping
 from pathlib import Path
 
 import matplotlib
@@ -20,15 +21,22 @@ from gms_comp.measured.diagnosis.result import Diagnosis, parameter_text
 __all__ = ["parameter_text", "phase_label", "write_report"]
 
 
-def _save(fig: Figure, path: Path) -> Path:
+def _save(fig: Figure, path: Path, source: str) -> Path:
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
+        fig.savefig(tmp, dpi=100, format="png", metadata={"Source": source})
     plt.close(fig)
     return path
 
 
-def write_report(diagnosis: Diagnosis, folder: str | Path) -> list[Path]:
-    """Write the report's PNG files and index.html into ``folder``; return their paths."""
+def write_report(
+    diagnosis: Diagnosis, folder: str | Path, inputs: Mapping[str, str] | None = None
+) -> list[Path]:
+    """Write the report's PNG files and index.html into ``folder``; return their paths.
+
+    ``inputs`` (what each input of the run was: ``{"trace": "t.csv (sha256 ...)"}``) is
+    named in the page and in each PNG's ``Source`` text."""
+    named = dict(inputs or {})
+    source = "; ".join(f"{k}: {v}" for k, v in named.items())
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     s = diagnosis.series
@@ -55,7 +63,7 @@ def write_report(diagnosis: Diagnosis, folder: str | Path) -> list[Path]:
         f"{diagnosis.baseline_rms_N:.3g} N -> {diagnosis.extended_rms_N:.3g} N)"
     )
     fig.tight_layout()
-    paths.append(_save(fig, out / "residual.png"))
+    paths.append(_save(fig, out / "residual.png", source))
 
     fig, ax = plt.subplots(figsize=(10, 0.45 * len(diagnosis.phases) + 1.5))
     names = list(diagnosis.phases)
@@ -66,7 +74,7 @@ def write_report(diagnosis: Diagnosis, folder: str | Path) -> list[Path]:
     ax.set_title("Where the baseline model is wrong, by motion phase")
     ax.legend()
     fig.tight_layout()
-    paths.append(_save(fig, out / "phases.png"))
+    paths.append(_save(fig, out / "phases.png", source))
 
     fig, ax = plt.subplots(figsize=(10, 4))
     ax.plot(s["time_s"], s["baseline_N"], lw=0.6, color="tab:red", label="baseline model")
@@ -77,13 +85,14 @@ def write_report(diagnosis: Diagnosis, folder: str | Path) -> list[Path]:
     ax.set_title("Measured force (on top) and the models")
     ax.legend(loc="upper right")
     fig.tight_layout()
-    paths.append(_save(fig, out / "force.png"))
-    paths.append(write_text(out / "index.html", _html(diagnosis, [p.name for p in paths])))
+    paths.append(_save(fig, out / "force.png", source))
+    paths.append(write_text(out / "index.html", _html(diagnosis, [p.name for p in paths], named)))
     return paths
 
 
-def _html(d: Diagnosis, images: list[str]) -> str:
+def _html(d: Diagnosis, images: list[str], inputs: Mapping[str, str]) -> str:
     e = html.escape
+    sources = "".join(f"<li>{e(k)}: {e(v)}</li>" for k, v in inputs.items())
     rows = "".join(
         f"<tr><td>{i + 1}</td><td>{e(c.effect.name)}</td><td>"
         + e(", ".join(parameter_text(k, v) for k, v in c.effect.parameters().items()))
@@ -104,6 +113,7 @@ def _html(d: Diagnosis, images: list[str]) -> str:
 table{{border-collapse:collapse}}td,th{{border:1px solid #aaa;padding:3px 8px}}</style>
 </head><body>
 <h1>Diagnosis: {e(d.effect)}</h1>
+<ul>{sources}</ul>
 <p>Gain {d.gain:.1%}: held-out force RMS {d.baseline_rms_N:.4g} N (baseline) to
 {d.extended_rms_N:.4g} N (extended); noise {d.noise_rms_N:.3g} N.
 Residual left by the extended model: {structure}.</p>

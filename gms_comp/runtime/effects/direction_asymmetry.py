@@ -5,12 +5,13 @@ c - c_diff/2 moving back (EMPS: a fatigued screw, Janot et al. 2019, section 4.2
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from gms_comp.arrays import BoolArray, FloatArray
+from gms_comp.config import in_range
 from gms_comp.runtime.effects.base import Effect
 from gms_comp.runtime.effects.path import Context
 
@@ -21,7 +22,7 @@ class DirectionAsymmetry(Effect):
 
     name: ClassVar[str] = "direction_asymmetry"
     BASIS_READS_GMS: ClassVar[bool] = False
-    c_diff_Ns_per_m: float
+    c_diff_Ns_per_m: float = field(metadata=in_range(-1e7, 1e7))
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:

@@ -4,12 +4,13 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from gms_comp.arrays import FloatArray
+from gms_comp.config import in_range, positive
 from gms_comp.runtime.effects.base import Effect, Shape, duration
 from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
@@ -22,8 +23,8 @@ class Drift(Effect):
     name: ClassVar[str] = "drift"
     SHAPE: ClassVar[tuple[str, ...]] = ("tau_s",)
     COEFFICIENT_LOWER: ClassVar[float] = -1.0
-    kappa: float
-    tau_s: float
+    kappa: float = field(metadata=in_range(-1.0, 100.0))
+    tau_s: float = field(metadata=positive(1e7))
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:

@@ -5,12 +5,13 @@ recorded command leads the force: command = force + lag_s dforce/dt."""
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from gms_comp.arrays import FloatArray
+from gms_comp.config import in_range
 from gms_comp.runtime.effects.base import FilterEffect, Shape
 from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
@@ -22,7 +23,7 @@ class DriveLag(FilterEffect):
 
     name: ClassVar[str] = "drive_lag"
     measurement_only: ClassVar[bool] = True
-    lag_s: float
+    lag_s: float = field(metadata=in_range(0.0, 1.0))
 
     @classmethod
     def from_shape(cls, shape: Mapping[str, float]) -> FilterEffect:

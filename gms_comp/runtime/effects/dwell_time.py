@@ -29,12 +29,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from gms_comp.arrays import FloatArray
+from gms_comp.config import in_range, positive
 from gms_comp.gms import GmsParams
 from gms_comp.runtime.effects.base import Effect, Shape, duration
 from gms_comp.runtime.effects.dwell_kernels import (
@@ -178,10 +179,10 @@ class DwellTime(Effect):
     SHAPE: ClassVar[tuple[str, ...]] = ("tau_s", "reach", "kept_through_turns")
     SET_BY_SIZE: ClassVar[tuple[str, ...]] = ("reach",)
     COEFFICIENT_LOWER: ClassVar[float] = 0.0
-    gamma: float
-    tau_s: float
-    reach: float
-    kept_through_turns: float = 0.0
+    gamma: float = field(metadata=in_range(0.0, 100.0))
+    tau_s: float = field(metadata=positive(1e7))
+    reach: float = field(metadata=positive(100.0))
+    kept_through_turns: float = field(default=0.0, metadata=in_range(0.0, 1.0))
 
     def __post_init__(self) -> None:
         if self.kept_through_turns not in (0.0, 1.0):

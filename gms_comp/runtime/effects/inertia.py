@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from gms_comp.arrays import FloatArray
+from gms_comp.config import in_range
 from gms_comp.runtime.effects.base import Effect
 from gms_comp.runtime.effects.path import Context
 
@@ -22,7 +23,7 @@ class Inertia(Effect):
     # the acceleration feedforward already supplies the inertial force
     measurement_only: ClassVar[bool] = True
     COEFFICIENT_LOWER: ClassVar[float] = 0.0
-    mass_kg: float
+    mass_kg: float = field(metadata=in_range(0.0, 1e5))
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from gms_comp.arrays import FloatArray
+from gms_comp.config import in_range
 from gms_comp.runtime.effects.base import Effect
 from gms_comp.runtime.effects.path import Context
 
@@ -19,7 +20,7 @@ class Offset(Effect):
 
     name: ClassVar[str] = "offset"
     BASIS_READS_GMS: ClassVar[bool] = False
-    offset_N: float
+    offset_N: float = field(metadata=in_range(-1e6, 1e6))
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from gms_comp.arrays import FloatArray
+from gms_comp.config import in_range, positive
 from gms_comp.runtime.effects.base import Effect, Shape, stroke, top_speed
 from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
@@ -39,9 +40,9 @@ class PositionRipple(Effect):
     BASIS_READS_GMS: ClassVar[bool] = False
     SHAPE: ClassVar[tuple[str, ...]] = ("wavelength_m",)
     READS_LEFTOVER: ClassVar[bool] = True
-    amplitude_N: float
-    wavelength_m: float
-    phase_rad: float
+    amplitude_N: float = field(metadata=in_range(-1e6, 1e6))
+    wavelength_m: float = field(metadata=positive(10.0))
+    phase_rad: float = field(metadata=in_range(-1e3, 1e3))
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:

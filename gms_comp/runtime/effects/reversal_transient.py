@@ -4,12 +4,13 @@ since the last reversal, A > 0 (an overshoot after every reversal)."""
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from gms_comp.arrays import FloatArray
+from gms_comp.config import in_range, positive
 from gms_comp.runtime.effects.base import Effect, Shape, stroke
 from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
@@ -23,8 +24,8 @@ class ReversalTransient(Effect):
     BASIS_READS_GMS: ClassVar[bool] = False
     SHAPE: ClassVar[tuple[str, ...]] = ("length_m",)
     COEFFICIENT_LOWER: ClassVar[float] = 0.0
-    amplitude_N: float
-    length_m: float
+    amplitude_N: float = field(metadata=in_range(0.0, 1e6))
+    length_m: float = field(metadata=positive(1.0))
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:

@@ -4,13 +4,14 @@ f_c, of the true force (a filter of the measurement chain, not of the contact)."
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 from scipy import signal
 
 from gms_comp.arrays import FloatArray
+from gms_comp.config import in_range, positive
 from gms_comp.runtime.effects.base import FilterEffect, Shape
 from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
@@ -26,8 +27,8 @@ class SensorLowpass(FilterEffect):
 
     name: ClassVar[str] = "sensor_lowpass"
     measurement_only: ClassVar[bool] = True
-    cutoff_Hz: float
-    order: int
+    cutoff_Hz: float = field(metadata=positive(1e6))
+    order: int = field(metadata=in_range(1, 8))
 
     @classmethod
     def from_shape(cls, shape: Mapping[str, float]) -> FilterEffect:

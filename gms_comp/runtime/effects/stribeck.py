@@ -4,12 +4,13 @@ falls from break-away towards sliding (a rise is the baseline's slip level C_v).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from gms_comp.arrays import FloatArray
+from gms_comp.config import positive
 from gms_comp.runtime.effects.base import Effect, Shape, top_speed
 from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
@@ -22,8 +23,8 @@ class Stribeck(Effect):
     name: ClassVar[str] = "stribeck"
     SHAPE: ClassVar[tuple[str, ...]] = ("v_s_m_per_s",)
     COEFFICIENT_LOWER: ClassVar[float] = 0.0  # ratio - 1 >= 0
-    ratio: float
-    v_s_m_per_s: float
+    ratio: float = field(metadata=positive(100.0))
+    v_s_m_per_s: float = field(metadata=positive(10.0))
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from gms_comp.arrays import FloatArray
+from gms_comp.config import in_range
 from gms_comp.runtime.effects.base import Effect
 from gms_comp.runtime.effects.path import Context
 
@@ -20,7 +21,7 @@ class Viscous(Effect):
     name: ClassVar[str] = "viscous"
     BASIS_READS_GMS: ClassVar[bool] = False
     COEFFICIENT_LOWER: ClassVar[float] = 0.0
-    c_Ns_per_m: float
+    c_Ns_per_m: float = field(metadata=in_range(0.0, 1e7))
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:
