@@ -284,6 +284,8 @@ class FrictionObserver:
         )
         self.state = np.array([0.0, level, 1.0, 0.0, level])
         self.reset()
+        self.step(0.0, 0.0)  # the kernels load now, not in a real-time loop's first cycle
+        self.reset()
 
     @property
     def initial_level(self) -> float:
