@@ -33,6 +33,7 @@ SECTIONS = (
     ("can", "firmware_bridge.settings", "CanConfig"),
     ("diagnosis", "gms_comp.measured.diagnosis.run", "DiagnosisConfig"),
     ("scaleout", "gms_comp.app.scaleout", "ScaleoutConfig"),
+    ("machine", "sim.machine", "MachineConfig"),
 )
 CAP_MODULES = (
     "gms_comp.validation",
