@@ -18,10 +18,11 @@ The axis is left stopped and disabled after each run, also on Ctrl-C.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import tempfile
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, cast
@@ -41,6 +42,7 @@ from gms_comp.app.live.recording import (
     write_recording,
 )
 from gms_comp.arrays import FloatArray
+from gms_comp.errors import BusError, InputError
 from gms_comp.measured.diagnosis.run import Diagnosis, DiagnosisConfig, diagnose
 from gms_comp.measured.traces import Trace, input_json, load_trace
 from gms_comp.runtime.observer import ForceModel, FrictionObserver
@@ -215,6 +217,25 @@ class Commissioning:
         }
 
 
+@contextlib.contextmanager
+def _explained_by_losses(sidecar: dict[str, Any]) -> Iterator[None]:
+    """A recording that cannot be diagnosed because rows were lost: say so, with figures."""
+    try:
+        yield
+    except InputError as err:
+        lost, n = sidecar["samples_missing"], sidecar["samples"]
+        if not lost:
+            raise
+        why = err.problem if err.field else str(err)
+        raise BusError(
+            f"the identification recording lost {lost} of {n} rows "
+            f"({sidecar['syncs_skipped']} SYNCs not sent, {sum(sidecar['lost'].values())} "
+            f"PDOs not received); read between its gaps, {why}. The bus or this computer "
+            f"did not keep the {sidecar['cycle_period_s'] * 1e3:g} ms cycle: run it again "
+            "with less load on the computer"
+        ) from err
+
+
 def commission(
     cfg: CanConfig,
     s: Scenario,
@@ -234,17 +255,19 @@ def commission(
     recording, _ = drive_and_record(cfg, targets, stop_request=stop_request, drive=drive)
     recorded = to_trace(recording, cfg, s.plant, "commission: identification profile")
     progress(f"diagnosing {recorded.sidecar['samples']} samples")
-    with tempfile.TemporaryDirectory() as folder:  # read back as diagnose reads a recording
-        path = Path(folder) / "identification.csv"
-        write_recording(recorded, path)
-        trace = load_trace(path, segment="longest")
     physics = physics_table(s)
-    # the physics table is the baseline the diagnosis calibrates and extends; the extended
-    # table is the physics GMS with the effects found: a drive's current sampled once a
-    # cycle pins what the physics leaves out, not presliding to the percent (on the
-    # simulated machine the calibration moved the level 5 % and presliding 15 % from the
-    # truth, and the reversals came out 70 % worse than the physics table's)
-    result = diagnose(trace, "drive", None, DiagnosisConfig(), physics.params)
+    with _explained_by_losses(recorded.sidecar):
+        with tempfile.TemporaryDirectory() as folder:  # read back as diagnose reads it
+            path = Path(folder) / "identification.csv"
+            write_recording(recorded, path)
+            trace = load_trace(path, segment="longest")
+        # the physics table is the baseline the diagnosis calibrates and extends; the
+        # extended table is the physics GMS with the effects found: a drive's current
+        # sampled once a cycle pins what the physics leaves out, not presliding to the
+        # percent (on the simulated machine the calibration moved the level 5 % and
+        # presliding 15 % from the truth, and the reversals came out 70 % worse than the
+        # physics table's)
+        result = diagnose(trace, "drive", None, DiagnosisConfig(), physics.params)
     extended = replace(extended_table(result), params=physics.params, scaled_by=physics.scaled_by)
     cv = fit_coulomb_viscous(trace, s.compensator.coulomb_velocity_band_m_s)
     models: dict[str, GmsTable | ForceModel | None] = {
