@@ -146,7 +146,8 @@ class _LoopStats:
         self.period_s = period_s
         self.loop_times: list[float] = []
         self.late = 0
-        self.skipped = 0
+        self.slipped = 0  # periods a late SYNC master's schedule moved by
+        self.unanswered = 0  # SYNCs a late follower did not answer
         self.max_lateness = 0.0
         self.sync_to_sent: list[float] = []
 
@@ -176,7 +177,8 @@ class _LoopStats:
         return {
             **follower,
             "cycles": cycles,
-            "late_cycles": self.late + self.skipped,
+            "late_cycles": self.late + self.unanswered,
+            "cycles_slipped": self.slipped,
             "max_lateness_s": self.max_lateness,
             "loop_time_p99_s": float(np.percentile(times, 99)) if times else 0.0,
             "loop_time_max_s": max(times, default=0.0),
@@ -213,10 +215,15 @@ def _control_loop(
         rig.send_cycle(cycle, current, start, hold=cycle < end and current is None)
         stats.record(start - scheduled, since_start() - start)
         rig.progress(scheduled)
-        # a late loop does not catch up with a burst: it resumes at the current slot
+        # a late loop neither catches up with a burst nor skips the cycles it missed: it
+        # slips, every cycle keeping its SYNC (the NC's program and the drive's cycles
+        # stay one per SYNC; the cycles the schedule moved by are counted)
         behind = int(since_start() / period) - cycle
-        stats.skipped += max(0, behind - 1)
-        cycle += max(1, behind)
+        if behind > 1:
+            nonlocal t0
+            t0 += (behind - 1) * period
+            stats.slipped += behind - 1
+        cycle += 1
 
     with _released_when_taken(rig, lambda: (cycle, since_start())):
         while cycle < (end := _ends(cycle, n_cycles, stop_request)) or _ramping(rig):
@@ -286,7 +293,7 @@ def _follower_loop(
             slot = sync_slot(cycle, counter, sync.last_counter, by_time)
         counter = sync.last_counter
         seen = sync.seen
-        stats.skipped += slot - cycle - 1 if cycle >= 0 else 0
+        stats.unanswered += slot - cycle - 1 if cycle >= 0 else 0
         cycle = slot
         lateness = time.time() - sync.last_s
         start = clock()

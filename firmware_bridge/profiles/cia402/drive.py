@@ -34,9 +34,12 @@ from firmware_bridge.supervisor import RejectCounts
 EMCY_FOLLOWING_ERROR = 0x8611
 SYNC_LOSS_S = 0.5
 """An axis in operation faults when SYNC has been gone this long (the NC stopped); a SYNC
-late by a few cycles raises EMCY 0x8100 but keeps the axis moving, holding its last
-target. Generous for a drive, because the NC here is a Python thread on a shared machine:
-at a load of 9 on 2 cores its SYNCs were 20-100 ms late now and then."""
+late by a few cycles raises EMCY 0x8100 but keeps the axis enabled, holding. Generous for
+a drive, because the NC here is a Python thread on a shared machine: at a load of 9 on 2
+cores its SYNCs were 20-100 ms late now and then."""
+MAX_MOVES_PER_TICK = 16
+"""SYNCs that arrive within one drive tick each move the axis one bus cycle (a burst of
+more is cut here: the NC is broken)."""
 _INT16, _INT32 = 2**15 - 1, 2**31 - 1
 
 
@@ -64,6 +67,13 @@ class Cia402Drive:
     feedforward only in "operation enabled", and faults when SYNC has been gone for
     :data:`SYNC_LOSS_S` or on a following error beyond the axis's limit (EMCY 0x8100,
     0x8611).
+
+    Its control cycle is the SYNC, as a drive's PLL locks it to the NC's: the axis moves
+    one bus cycle per SYNC (at the drive tick after it, with the feedforward applied
+    then), so a SYNC early or late, or two within one of the drive's ticks, moves it
+    exactly as on time, and the simulated machine's time is the NC's cycle count,
+    whatever the host's scheduling (a Python NC on a loaded machine is late by
+    milliseconds now and then). Without SYNC the axis holds where it is.
     """
 
     def __init__(self, cfg: CanConfig, bus: can.BusABC, axis: DriveAxis | None = None) -> None:
@@ -88,6 +98,7 @@ class Cia402Drive:
         self.target_m = 0.0
         self.sync_loss_s = SYNC_LOSS_S
         self._nc: bytes | None = None  # the NC's RPDO1 since the last SYNC
+        self._moves: list[float] = []  # the targets of the SYNCs since the last tick
         self.sample: AxisSample | None = None
 
     @property
@@ -106,6 +117,8 @@ class Cia402Drive:
                 self.power.command(controlword)
                 self.target_m = target * self.unit_m
             self._nc = None
+            if self.axis is not None and len(self._moves) < MAX_MOVES_PER_TICK:
+                self._moves.append(self.target_m)
             if self._syncs % self.status_every == 0:  # sampled at SYNC, as type-1 TPDOs are
                 self._send_tpdos(msg.data[0] if len(msg.data) == 1 else 0)
             self._syncs += 1
@@ -118,7 +131,17 @@ class Cia402Drive:
         The axis moves one bus cycle."""
         out = self.receiver.tick(now_s)
         if self.axis is not None:
-            self._move(out, now_s)
+            last_sync = self.receiver.last_sync_s
+            if (
+                self.power.enabled
+                and last_sync is not None
+                and now_s - last_sync > self.sync_loss_s
+            ):
+                self.power.fault(EMCY_SYNC_LOST)
+            # before the first SYNC the axis stands on the drive's own ticks
+            for target in self._moves or ([self.target_m] if last_sync is None else []):
+                self._move(out, target)
+            self._moves = []
         return out, self.receiver.applied_data
 
     def _on_write(self, index: int, subindex: int, od: object, data: bytes) -> None:
@@ -135,18 +158,15 @@ class Cia402Drive:
             2, "little"
         )
 
-    def _move(self, offset_raw: int, now_s: float) -> None:
+    def _move(self, offset_raw: int, target_m: float) -> None:
         assert self.axis is not None
-        last_sync = self.receiver.last_sync_s
-        if self.power.enabled and last_sync is not None and now_s - last_sync > self.sync_loss_s:
-            self.power.fault(EMCY_SYNC_LOST)
         enabled = self.power.enabled
         in_drive = None
         if self.receiver.in_drive and self.in_drive is not None:
             self.in_drive.set_level(offset_raw)  # the value is the level: no current of its own
             in_drive, offset_raw = self.in_drive, 0
         offset_A = self.codec.from_raw(offset_raw) if enabled else 0.0
-        self.sample = self.axis.cycle(self.target_m, offset_A, enabled, in_drive)
+        self.sample = self.axis.cycle(target_m, offset_A, enabled, in_drive)
         if enabled and abs(self.sample.following_error_m) > self.axis.max_following_error_m:
             self.power.fault(EMCY_FOLLOWING_ERROR)
             self.receiver.raise_fault(EMCY_FOLLOWING_ERROR)

@@ -24,12 +24,16 @@ class SyncProducer:
     still says which slot it belongs to, and a skipped one shows as a gap.
     """
 
+    slips = False
+    """Whether a late wake-up moves the grid instead of skipping its slots."""
+
     def __init__(self, bus: can.BusABC, codec: Cia402Codec, period_s: float) -> None:
         self.bus = bus
         self.codec = codec
         self.period_s = period_s
         self.sent = 0
         self.slot = 0  # the grid slot of the next SYNC
+        self.slipped = 0  # periods the grid moved by (a producer that slips)
 
     def send(self) -> None:
         """Send the SYNC of the current slot now and move to the next slot."""
@@ -42,7 +46,9 @@ class SyncProducer:
 
         A late wake-up sends one SYNC, numbered by the slot it is sent in (the
         slots already over are skipped, never sent late under their own number),
-        and rejoins the grid, as a master's timer would.
+        and rejoins the grid, as a master's timer would; a producer that
+        :attr:`slips` sends the next slot late instead and moves the grid by the
+        periods lost.
         """
         next_s = clock()
         while not stop.is_set():
@@ -50,11 +56,12 @@ class SyncProducer:
             if remaining > 0:
                 time.sleep(remaining)
             over = max(0, math.floor((clock() - next_s) / self.period_s))
-            self.slot += over
+            self.slot += 0 if self.slips else over
             next_s += over * self.period_s
             self.send()
             missed = max(0, math.floor((clock() - next_s) / self.period_s))
-            self.slot += missed
+            self.slot += 0 if self.slips else missed
+            self.slipped += (over + missed) if self.slips else 0
             next_s += (1 + missed) * self.period_s
 
 
@@ -63,8 +70,12 @@ class MotionNc(SyncProducer):
 
     It reads the drive's statusword from the bus to step through the enable sequence
     (:class:`~firmware_bridge.profiles.cia402.motion.NcProgram`); after the program it
-    keeps producing SYNC, the drive disabled.
+    keeps producing SYNC, the drive disabled. Its program's time is its count of SYNCs,
+    one target each, so it :attr:`slips` (a drive locked to SYNC moves one cycle per
+    SYNC: a skipped number would be a gap in a recording where the axis had none).
     """
+
+    slips = True
 
     def __init__(
         self,
