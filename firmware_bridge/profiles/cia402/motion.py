@@ -34,7 +34,10 @@ from firmware_bridge.profiles.cia402.statemachine import (
 )
 
 PICOMETRE = 1e-12
-ENABLE_WAIT_CYCLES = 50  # how long the NC waits for each step of the enable sequence
+ENABLE_WAIT_CYCLES = 500
+"""How long the NC waits for each step of the enable sequence (and for the first position
+actual): 0.5 s at 1 kHz, as a drive releasing its brake may take; 50 cycles failed now and
+then against a machine process just started on a loaded host."""
 
 
 class AxisSample(Protocol):
