@@ -38,8 +38,7 @@ late by a few cycles raises EMCY 0x8100 but keeps the axis enabled, holding. Gen
 a drive, because the NC here is a Python thread on a shared machine: at a load of 9 on 2
 cores its SYNCs were 20-100 ms late now and then."""
 MAX_MOVES_PER_TICK = 16
-"""SYNCs that arrive within one drive tick each move the axis one bus cycle (a burst of
-more is cut here: the NC is broken)."""
+"""At most this many axis cycles run at once (a burst of SYNCs: the NC is broken)."""
 _INT16, _INT32 = 2**15 - 1, 2**31 - 1
 
 
@@ -70,10 +69,11 @@ class Cia402Drive:
 
     Its control cycle is the SYNC, as a drive's PLL locks it to the NC's: the axis moves
     one bus cycle per SYNC (at the drive tick after it, with the feedforward applied
-    then), so a SYNC early or late, or two within one of the drive's ticks, moves it
-    exactly as on time, and the simulated machine's time is the NC's cycle count,
-    whatever the host's scheduling (a Python NC on a loaded machine is late by
-    milliseconds now and then). Without SYNC the axis holds where it is.
+    then, or at the next SYNC if that comes first), so a SYNC early or late, or two
+    within one of the drive's ticks, moves it exactly as on time, and the simulated
+    machine's time is the NC's cycle count, whatever the host's scheduling (a Python NC
+    on a loaded machine is late by milliseconds now and then). Without SYNC the axis
+    holds where it is.
     """
 
     def __init__(self, cfg: CanConfig, bus: can.BusABC, axis: DriveAxis | None = None) -> None:
@@ -99,7 +99,13 @@ class Cia402Drive:
         self.sync_loss_s = SYNC_LOSS_S
         self._nc: bytes | None = None  # the NC's RPDO1 since the last SYNC
         self._moves: list[float] = []  # the targets of the SYNCs since the last tick
+        self._last_out = 0  # the 0x60B2 value the last tick applied
         self.sample: AxisSample | None = None
+
+    @property
+    def cycle_sync_cob_id(self) -> int | None:
+        """With an axis, the drive's cycle is the SYNC (the emulator runs it at each one)."""
+        return self.codec.sync_cob_id if self.axis is not None else None
 
     @property
     def counts(self) -> RejectCounts:
@@ -117,7 +123,10 @@ class Cia402Drive:
                 self.power.command(controlword)
                 self.target_m = target * self.unit_m
             self._nc = None
-            if self.axis is not None and len(self._moves) < MAX_MOVES_PER_TICK:
+            if self.axis is not None:
+                # the cycles of earlier SYNCs not run yet (two SYNCs within one tick) run
+                # first: what the TPDOs sample has followed every target before this one
+                self._run_moves(self._last_out)
                 self._moves.append(self.target_m)
             if self._syncs % self.status_every == 0:  # sampled at SYNC, as type-1 TPDOs are
                 self._send_tpdos(msg.data[0] if len(msg.data) == 1 else 0)
@@ -138,11 +147,16 @@ class Cia402Drive:
                 and now_s - last_sync > self.sync_loss_s
             ):
                 self.power.fault(EMCY_SYNC_LOST)
-            # before the first SYNC the axis stands on the drive's own ticks
-            for target in self._moves or ([self.target_m] if last_sync is None else []):
-                self._move(out, target)
-            self._moves = []
+            if last_sync is None:  # before the first SYNC it stands on the drive's ticks
+                self._moves = [self.target_m]
+            self._run_moves(out)
+            self._last_out = out
         return out, self.receiver.applied_data
+
+    def _run_moves(self, offset_raw: int) -> None:
+        for target in self._moves[:MAX_MOVES_PER_TICK]:
+            self._move(offset_raw, target)
+        self._moves = []
 
     def _on_write(self, index: int, subindex: int, od: object, data: bytes) -> None:
         """An SDO download: a table for the observer in the drive (or an abort)."""
