@@ -18,7 +18,7 @@ from gms_comp.measured.diagnosis.baseline import Baseline, fit_baseline
 from gms_comp.measured.diagnosis.basis import FreeBasis
 from gms_comp.measured.diagnosis.candidates import Option, Scorer
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
-from gms_comp.measured.diagnosis.level_free import stribeck_with_level
+from gms_comp.measured.diagnosis.level_free import with_free_level
 from gms_comp.measured.diagnosis.prepare import prepare
 from gms_comp.measured.traces import Trace
 from gms_comp.runtime import effects as fx
@@ -36,7 +36,7 @@ def test_a_stribeck_fall_is_found_at_the_level_it_rises_from() -> None:
     gen, baseline = _fitted("stribeck", 120)
     (name, truth), *_ = gen.effects
     assert name == "stribeck"
-    free = stribeck_with_level(baseline, Scorer(baseline.parts, []))
+    free = with_free_level(fx.Stribeck, baseline, Scorer(baseline.parts, []))
     assert free is not None
     # the level the fall sits on: the truth's C_v within the grid's spacing
     assert isinstance(free.baseline.basis, FreeBasis)
@@ -50,7 +50,7 @@ def test_a_stribeck_fall_is_found_at_the_level_it_rises_from() -> None:
 def test_nothing_is_searched_where_the_baseline_leaves_noise() -> None:
     gen, baseline = _fitted("none", 101)
     assert baseline.heldout_rms_N < 1.2 * gen.noise_N  # the premise: the GMS explains it
-    assert stribeck_with_level(baseline, Scorer(baseline.parts, [])) is None
+    assert with_free_level(fx.Stribeck, baseline, Scorer(baseline.parts, [])) is None
 
 
 @pytest.mark.slow  # a baseline and 17 levels on a 120 000-sample trace (40 s)
@@ -63,7 +63,7 @@ def test_a_stribeck_fall_after_an_offset_is_found_on_the_force_fitted_beside_it(
     gen, fitted = _fitted("pair_offset_stribeck", 259)
     truth = dict(gen.effects)["stribeck"]
     offset = Option(fx.Offset, {})
-    free = stribeck_with_level(fitted, Scorer(fitted.parts, [offset]))
+    free = with_free_level(fx.Stribeck, fitted, Scorer(fitted.parts, [offset]))
     assert free is not None
     assert isinstance(free.baseline.basis, FreeBasis)
     assert free.baseline.basis.slip_level == pytest.approx(gen.C_v, abs=0.1)

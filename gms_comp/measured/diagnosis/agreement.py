@@ -1,7 +1,7 @@
 """The shape of an effect made to agree with its fitted size.
 
 Some shape parameters follow from the size itself (a dwell gain's windows are computed
-at the gain they raise the limits by: ``Effect.consistent_shape``). A fit on a shape
+at the gain they raise the limits by: ``Policy.consistent_shape``). A fit on a shape
 gives a size, the size implies a shape: :func:`agreed` steps between the two, bounded,
 to a fixed point.
 """
@@ -37,7 +37,7 @@ def agreed(
 ) -> Fitted:  # fmt: skip
     """``first`` (an option fitted) with its shape made to agree with its fitted size: at
     most ``CONSISTENCY_STEPS`` steps towards the shape of the effect's own rule
-    (:meth:`~gms_comp.runtime.effects.Effect.consistent_shape`; halfway, then bisecting
+    (:meth:`~gms_comp.measured.policies.Policy.consistent_shape`; halfway, then bisecting
     once it has been passed, see ``CONSISTENCY_STEPS``), each one fitted by ``fit``;
     ``option`` and ``coefficients`` read a fit's option and its own coefficients.
     Returns the first fit that agrees within ``CONSISTENCY_CONVERGED``, else the one
@@ -87,7 +87,7 @@ def agreement(option: Option, coefficients: FloatArray) -> tuple[dict[str, float
     shape = dict(option.shape)
     if option.is_filter:
         return shape, 1.0
-    agreed = option.effect.consistent_shape(coefficients, shape)
+    agreed = option.policy.consistent_shape(coefficients, shape)
     factors = [
         max(agreed[k] / shape[k], shape[k] / agreed[k]) if agreed[k] * shape[k] > 0 else
         (1.0 if agreed[k] == shape[k] else np.inf)

@@ -53,24 +53,20 @@ from gms_comp.measured.diagnosis.slip_level import (
     level_of,
     transition_range,
 )
+from gms_comp.measured.policies import policy
 from gms_comp.runtime import effects as fx
 
 Basis = FreeBasis | TableBasis
 
 # The element grid in two passes: COARSE_ELEMENTS over the whole range of break-aways
-# (position resolution to a tenth of the stroke) find where the limits are; then the
-# configured number of elements over that range, widened by one coarse spacing either
-# side (a coarse grid's spacing of about 5 leaves the presliding curve of an axis with
-# clustered break-aways 1.5-2 x the noise off below 1 mm/s; the dense one within it).
-# A limit below SUPPORT_SHARE of the sum does not count as where the limits are.
+# find where the limits are (a limit below SUPPORT_SHARE of the sum does not count);
+# then the configured number over that range, widened by one coarse spacing either side.
 COARSE_ELEMENTS = 8
 SUPPORT_SHARE = 0.01
 # Then the break-aways of the elements the grid fit keeps are moved off the grid (free
 # knots): coordinate steps in log(break-away) of these sizes, at most KNOT_ROUNDS rounds
-# each, every trial's limits by NNLS on the training rows, inside the grid's range. A true
-# element between grid points is otherwise carried by both, and a dwell's raised limit by
-# neither: on ten independent dwell traces the grid's elements correlated 0.41-0.93 with
-# the truth's dwell force, the moved ones 0.49-0.95; the held-out RMS fell 0.2-8 %.
+# each, inside the grid's range (a true element between grid points is otherwise carried
+# by both, and a dwell's raised limit by neither).
 KNOT_STEPS = (0.2, 0.1, 0.05)
 KNOT_ROUNDS = 6
 # The effect bases a part keeps for the rounds of the selection (about 180 columns of a
@@ -97,7 +93,7 @@ class FittedPart:
         the oldest dropped first: the selection scores an effect's grid again in every
         round and a chosen effect's columns in every filter trial (a dwell column: 15 ms)."""
         key = (effect.name, *sorted(shape.items()))
-        kept = self._bases if effect.BASIS_READS_GMS else self.part.motion_bases
+        kept = self._bases if policy(effect).basis_reads_gms else self.part.motion_bases
         if key not in kept:
             values = effect.basis(self.ctx, shape)
             values.flags.writeable = False
@@ -364,6 +360,12 @@ def _baseline(
         heldout_rms_N=rms(held_residual(parts, predictions)), presliding_m=presliding_length(gms),
         sliding_force_N=float(np.sum(gms.limit_N)) * gms.slip_level,
     )  # fmt: skip
+
+
+def drive_mass(prepared: Prepared, theta: FloatArray, n_gms: int) -> list[fx.Effect]:
+    """A drive force's mass (the coefficient after the GMS's) as an effect; none for a
+    friction force."""
+    return [fx.Inertia(float(theta[n_gms]))] if prepared.drive else []
 
 
 def held_residual(parts: Sequence[FittedPart], predictions: Sequence[FloatArray]) -> FloatArray:

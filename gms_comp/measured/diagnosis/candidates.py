@@ -27,6 +27,7 @@ from gms_comp.measured.diagnosis.design import (
     rms,
     runs,
 )
+from gms_comp.measured.policies import Leftover, Policy, policy
 from gms_comp.runtime import effects as fx
 
 # Where an option acts (where an effect on few samples is judged): the fewest held-out
@@ -61,6 +62,11 @@ class Option:
     shape: dict[str, float]
 
     @property
+    def policy(self) -> type[Policy]:
+        """The effect's diagnosis policy."""
+        return policy(self.effect)
+
+    @property
     def is_filter(self) -> bool:
         """Whether the effect filters the whole force."""
         return issubclass(self.effect, fx.FilterEffect)
@@ -73,12 +79,12 @@ class Option:
     def columns(self, fp: FittedPart, filters: Sequence[Option] = ()) -> Columns:
         """The additive option's columns on ``fp``, through the chosen ``filters``."""
         values = through(filters, fp.effect_basis(self.effect, self.shape), fp.ctx.sample_time_s)
-        return Columns(values, np.full(values.shape[1], self.effect.COEFFICIENT_LOWER))
+        return Columns(values, np.full(values.shape[1], self.policy.coefficient_lower))
 
     def acting(self, fp: FittedPart, columns: Columns) -> FloatArray:
         """Values along ``fp`` whose large rows are where the option acts: its
         ``columns`` there, or the effect's own departure from the baseline."""
-        departure = self.effect.departure(fp.ctx, self.shape)
+        departure = self.policy.departure(fp.ctx, self.shape)
         return columns.values if departure is None else departure[:, None]
 
     def with_value(self, key: str, value: float) -> Option:
@@ -96,8 +102,9 @@ def through(filters: Sequence[Option], values: FloatArray, sample_time_s: float)
 def options(effect: type[fx.Effect], scorer: Scorer, presliding_m: float) -> list[Option]:
     """The effect's shape grid on the main part as options, searched in what the design
     of ``scorer`` leaves (:attr:`Scorer.leftover`) where the effect reads it."""
-    left = scorer.leftover if effect.READS_LEFTOVER else fx.Leftover.empty()
-    grid = effect.shape_grid(scorer.parts[0].ctx, left, presliding_m)
+    rules = policy(effect)
+    left = scorer.leftover if rules.reads_leftover else Leftover.empty()
+    grid = rules.shape_grid(scorer.parts[0].ctx, left, presliding_m)
     return [Option(effect, s) for s in grid]
 
 
@@ -178,13 +185,13 @@ class Scorer:
         return self.designs[index].columns.values @ self.theta
 
     @functools.cached_property
-    def leftover(self) -> fx.Leftover:
+    def leftover(self) -> Leftover:
         """What the design leaves on the main part's training rows in motion, with the
         design's basis there (for a grid found from it: a ripple's wavelengths)."""
         fp = self.parts[0]
         residual = fp.part.force_N - self.model()
         read = fp.part.train & (fp.ctx.moving > 0)
-        return fx.Leftover.of(residual, read, self.designs[0].columns.values)
+        return Leftover.of(residual, read, self.designs[0].columns.values)
 
     def score(self, opt: Option) -> Trial:
         """``opt`` added to the chosen options, fitted on training, scored held out."""
@@ -277,9 +284,9 @@ class Scorer:
 
     def told_apart(self, opt: Option) -> BoolArray | None:
         """The held-out rows (every part's, in order) whose motion can tell ``opt``'s
-        effect from the others (:meth:`~gms_comp.runtime.effects.base.Effect.told_apart`),
+        effect from the others (:meth:`~gms_comp.measured.policies.Policy.told_apart`),
         or None: every row."""
-        masks = opt.effect.told_apart([fp.ctx for fp in self.parts])
+        masks = opt.policy.told_apart([fp.ctx for fp in self.parts])
         if masks is None:
             return None
         return np.concatenate([m[fp.part.held] for m, fp in zip(masks, self.parts, strict=True)])

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from gms_comp.arrays import FloatArray
+from gms_comp.measured.policies import POLICIES, policy
 from gms_comp.runtime import effects as fx
 from gms_comp.runtime.effects.path import Context
 
@@ -50,7 +51,7 @@ BAND_SHARE = 0.02
 # 119, 6.3-7.9 mm/s (1.26) and 1.0-1.6 mm/s (1.58).
 NARROW_BAND = 2.0
 # The effects a confound of speed and direction concerns.
-SPEED_OR_DIRECTION = ("viscous", "stribeck", "direction_asymmetry", "offset")
+SPEED_OR_DIRECTION = tuple(name for name, p in POLICIES.items() if p.speed_or_direction)
 # A shape parameter within this factor of a bound of its search is at it.
 AT_BOUND = 1.02
 # Another effect near the first one kept: it took at least this share of the first
@@ -146,7 +147,7 @@ def at_bound(effects: Sequence[fx.Effect], ctx: Context, presliding_m: float) ->
     (within ``AT_BOUND``; the bounds on the path ``ctx``); None when none is."""
     found = []
     for effect in effects:
-        for key, (lo, hi) in effect.shape_bounds(ctx, presliding_m).items():
+        for key, (lo, hi) in policy(effect).shape_bounds(ctx, presliding_m).items():
             value = float(getattr(effect, key))
             if value >= hi / AT_BOUND or value <= lo * AT_BOUND:
                 side = "upper" if value >= hi / AT_BOUND else "lower"

@@ -1,4 +1,5 @@
-"""A Stribeck fall scored with the baseline's slip level free.
+"""An effect scored with the baseline's slip level free (``Policy.free_level``: a
+Stribeck fall).
 
 The blind baseline fits its slip level C_v alone, and a Stribeck fall drags it: with
 friction rising from stick to a sliding level C_v above it and falling again towards
@@ -64,10 +65,11 @@ class FreeLevel:
     plain: Scorer
 
 
-def stribeck_with_level(
-    baseline: Baseline, now: Scorer, fitted: dict[tuple[float, float], Baseline] | None = None
-) -> FreeLevel | None:
-    """Stribeck's best trial (held-out RMS) on top of the options ``now`` holds, over the
+def with_free_level(
+    effect: type[fx.Effect], baseline: Baseline, now: Scorer,
+    fitted: dict[tuple[float, float], Baseline] | None = None,
+) -> FreeLevel | None:  # fmt: skip
+    """``effect``'s best trial (held-out RMS) on top of the options ``now`` holds, over the
     grid of slip levels; None for a table's baseline, or where ``now`` leaves less than
     ``FREE_LEVEL_RATIO`` x the noise held out. ``fitted``: the baselines fitted so far on
     the grid's levels, by (C_v, transition velocity), kept across the selection's rounds
@@ -100,7 +102,7 @@ def stribeck_with_level(
             scorer = Scorer(parts, chosen)
         if plain is None or scorer.heldout_rms_N < plain.heldout_rms_N:
             plain = scorer
-        grid = options(fx.Stribeck, scorer, rebased.presliding_m)
+        grid = options(effect, scorer, rebased.presliding_m)
         trial = min(scorer.score_all(grid), key=lambda t: t.heldout_rms_N)
         if best is None or trial.heldout_rms_N < best.trial.heldout_rms_N:
             best, best_at = FreeLevel(rebased, scorer, trial, scorer), key

@@ -1,6 +1,6 @@
-"""The refit's joint search of the slip level with the shape it trades against: a kept
-Stribeck fall's v_s, else a kept drift's tau (``LEVEL_TRADED``), searched together with
-C_v and v_t on each of the level's tails (:data:`.slip_level.REFIT_TAILS`)."""
+"""The refit's joint search of the slip level with the shape it trades against (a kept
+effect's ``Policy.level_shape``: a Stribeck fall's v_s, else a drift's tau), searched
+together with C_v and v_t on each of the level's tails (:data:`.slip_level.REFIT_TAILS`)."""
 
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ from gms_comp.measured.diagnosis.baseline import (
     Baseline,
     Basis,
     FittedPart,
+    drive_mass,
     held_residual,
     rebased_gram,
     refit_gms_force,
@@ -44,8 +45,6 @@ from gms_comp.runtime import effects as fx
 JOINT_LEVEL_STEPS = (0.05, float(np.log(2.0)), float(np.log(1.3)))
 JOINT_LEVEL_EVALS = 60
 JOINT_GRID_STEPS = (0.05, float(np.log(1.6)), float(np.log(1.5)))
-# Searched in this order of preference; each has one shape parameter (its SHAPE).
-LEVEL_TRADED: tuple[type[fx.Effect], ...] = (fx.Stribeck, fx.Drift)
 # Each tail's search ends where its training RMS is least; the tail is then chosen by held-out
 # RMS. The GMS's elements fit part of the noise, so the training RMS favours the tail whose
 # misfit they can carry: on pair_drift_offset-251 of the independent generator (a drift and
@@ -58,23 +57,23 @@ LEVEL_TRADED: tuple[type[fx.Effect], ...] = (fx.Stribeck, fx.Drift)
 def level_with_shape(
     baseline: Baseline, basis: Basis, chosen: list[Option], refits: int, alone: bool = False
 ) -> tuple[FreeBasis, list[Option]] | None:
-    """A kept ``LEVEL_TRADED`` effect's shape (a Stribeck fall's v_s, else a drift's
-    tau) searched together with the free basis's slip level (C_v and v_t; see
+    """A kept effect's level shape (:func:`level_traded`) searched together with the
+    free basis's slip level (C_v and v_t; see
     ``JOINT_LEVEL_EVALS``) on each of the level's tails (slip_level.REFIT_TAILS, the
     basis's first), each trial costed by the training RMS once the GMS force is updated
     ``refits`` times; of the tails' best points that train better than the start, the one
     that holds out best; None when no such effect is kept (unless ``alone``: then the
     level alone is searched), the basis is a table's, or the search found nothing better."""
-    at = next((k for e in LEVEL_TRADED for k, o in enumerate(chosen) if o.effect is e), None)
+    at = level_traded(chosen)
     if (at is None and not alone) or not isinstance(basis, FreeBasis):
         return None
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in baseline.prepared.parts)
     ranges = [transition_range(vmax, np.inf)]
     key = ""
     if at is not None:
-        effect = chosen[at].effect
-        (key,) = effect.SHAPE
-        ranges.append(effect.shape_bounds(baseline.parts[0].ctx, baseline.presliding_m)[key])
+        rules = chosen[at].policy
+        key = str(rules.level_shape)
+        ranges.append(rules.shape_bounds(baseline.parts[0].ctx, baseline.presliding_m)[key])
     bounds = [SLIP_LEVEL_RANGE, *((float(np.log(lo)), float(np.log(hi))) for lo, hi in ranges)]
     dims = len(bounds)
 
@@ -137,6 +136,13 @@ def level_with_shape(
     return unpack(*best)
 
 
+def level_traded(chosen: Sequence[Option]) -> int | None:
+    """The index in ``chosen`` of the effect whose shape is searched with the slip level
+    (``Policy.level_shape``, the lowest ``level_rank`` first), or None."""
+    traded = [(o.policy.level_rank, k) for k, o in enumerate(chosen) if o.policy.level_shape]
+    return min(traded)[1] if traded else None
+
+
 def run_held_out(
     baseline: Baseline, basis: Basis, parts: Sequence[FittedPart], chosen: Sequence[Option],
     theta: FloatArray,
@@ -161,9 +167,7 @@ def extended_model(
     w = widths(parts, chosen)
     base_width = parts[0].base.values.shape[1]
     extensions = [effect_of(o, chosen, theta, base_width, w) for o in chosen]
-    if baseline.prepared.drive:
-        extensions.append(fx.Inertia(float(theta[n])))
-    return basis.gms(theta[:n]), extensions
+    return basis.gms(theta[:n]), extensions + drive_mass(baseline.prepared, theta, n)
 
 
 def extended_force(fp: FittedPart, gms: GmsParams, extensions: Sequence[fx.Effect]) -> FloatArray:

@@ -3,12 +3,14 @@ compensator runs it.
 
 The effects that scale the friction (stribeck, dwell_time, drift) are columns of the GMS
 force; it is updated to the jointly fitted GMS and the fit repeated (``JOINT_REFITS``
-times), so that they scale the force the extended model will run with. The shapes of
-``REFIT_SHAPES`` are searched again each time by training RMS: the selection chose them
+times), so that they scale the force the extended model will run with. The shape of every
+additive effect is searched again each time by training RMS: the selection chose them
 by held-out RMS with the baseline's GMS force, where a dwell's gain and time constant
-trade off (tau came out 15-30 % high on simulated traces). A kept Stribeck fall's v_s, or
-a kept drift's tau, is then searched together with the slip level it trades against
-(:mod:`.level_search`).
+trade off (tau came out 15-30 % high on simulated traces), and a reversal transient's length
+on elements that had taken part of it. A kept effect's ``Policy.level_shape`` is then
+searched together with the slip level it trades against (:mod:`.level_search`); the free
+baseline is placed again on the force less the effects whose policy says the blind
+elements take part of them (``Policy.elements_take_part``).
 """
 
 from __future__ import annotations
@@ -46,29 +48,17 @@ from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
 from gms_comp.measured.diagnosis.gain import lowers
 from gms_comp.measured.diagnosis.level_search import (
-    LEVEL_TRADED,
     extended_force,
     extended_model,
+    level_traded,
     level_with_shape,
 )
-from gms_comp.measured.diagnosis.selection import DISCRETE, Selection, admissible, local_search
+from gms_comp.measured.diagnosis.selection import Selection, admissible, local_search
 from gms_comp.measured.diagnosis.sensed import sensed_again
+from gms_comp.measured.policies import Leftover
 from gms_comp.runtime import effects as fx
 
 JOINT_REFITS = 3
-# A reversal transient's length is among them: the selection chose it by held-out RMS
-# on the blind baseline's elements, which had taken part of the transient; refitted with
-# the elements, another length fits (independent reversal_transient-105: A 1.29 N over
-# 18 um for a true 0.92 N over 90 um; searched again, 0.79 N over 69 um). A ripple's
-# wavelength too, in its own fine steps, once the elements are placed again.
-REFIT_SHAPES = (fx.DwellTime, fx.Drift, fx.Stribeck, fx.ReversalTransient, fx.PositionRipple)
-# Effects of the position and of the distance from a reversal: the blind baseline's
-# elements are placed with them in the force, before any effect is known, and take part
-# of them (a 9.6 N ripple, 27 % of the level: the elements placed on the force without it
-# fit to the noise, 0.38 N, in every quarter of the trace; placed with it, the extended
-# model left 1.27 N in the slow first quarter, and a tone there read as ``unknown``).
-PLACED_AGAIN = (fx.PositionRipple, fx.ReversalTransient)
-WHOLE_ROWS = (fx.DwellTime,)
 
 
 @dataclass(frozen=True)
@@ -90,7 +80,8 @@ class Extended:
     predictions: tuple[FloatArray, ...]
     heldout_rms_N: float
     held_residual_N: FloatArray
-    # the free baseline re-placed on the force less the kept PLACED_AGAIN effects, if fitted
+    # the free baseline re-placed on the force less the kept effects the elements took part
+    # of, if fitted
     placed: Baseline | None = None
 
 
@@ -120,7 +111,7 @@ def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
     start = selection.level_from or selection.baseline
     rest = [
         (o, h) for o, h in zip(selection.chosen, selection.heldout_rms_N, strict=True)
-        if o.effect is not judged
+        if o is not judged
     ]  # fmt: skip
     # from the same baseline, the elements re-placed for the first refit serve the second
     placed = extended.placed if start is selection.baseline else None
@@ -132,21 +123,22 @@ def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
     return extended if lowers(cfg, without.held_residual_N, extended.held_residual_N) else without
 
 
-def _judged(selection: Selection) -> type[fx.Effect] | None:
-    """The kept effect :func:`refit` judges against the model without it: a Stribeck kept
-    with the slip level free or after another effect; else, beside another effect, the
-    first kept of ``LEVEL_TRADED`` (a Stribeck, else a drift), whose shape the refit
-    searches with the level. A drift kept beside a reversal transient stood in for the
+def _judged(selection: Selection) -> Option | None:
+    """The kept effect :func:`refit` judges against the model without it: one whose
+    policy scores it with the level free (``free_level``: a Stribeck), kept so or after
+    another effect; else, beside another effect, the one whose shape the refit searches
+    with the level (:func:`.level_search.level_traded`: a Stribeck, else a drift). A
+    drift kept beside a reversal transient stood in for the
     level's rise: on reversal_transient-251 of the independent generator (an 11 N
     transient over 36 um on a 35 N level, C_v 1.256; no drift) a 3 % drift over 6.3 s
     was chosen first and kept, 0.7126 N held out (noise 0.638 N); the transient alone,
     its level searched, 0.7082 N at C_v 1.252."""
-    effects = [o.effect for o in selection.chosen]
-    if selection.level_from is not None or fx.Stribeck in effects[1:]:
-        return fx.Stribeck
-    if len(effects) < 2:
-        return None
-    return next((e for e in LEVEL_TRADED if e in effects), None)
+    chosen = selection.chosen
+    free = [k for k, o in enumerate(chosen) if o.policy.free_level]
+    if free and (selection.level_from is not None or free[0] > 0):
+        return chosen[free[0]]
+    at = level_traded(chosen)
+    return None if len(chosen) < 2 or at is None else chosen[at]
 
 
 def refit_kept(
@@ -222,7 +214,7 @@ def _joint_refits(
     presliding_m: float,
 ) -> tuple[tuple[FittedPart, ...], list[Option], FloatArray]:  # fmt: skip
     """``JOINT_REFITS`` times: the GMS force updated to the joint fit ``theta``, the
-    shapes of ``REFIT_SHAPES`` searched again, everything fitted again."""
+    additive effects' shapes searched again, everything fitted again."""
     # the GMS columns stay (their force is refitted), and so do the filters
     base = base_gram(parts, chosen)
     for _ in range(JOINT_REFITS if chosen else 0):
@@ -235,13 +227,14 @@ def _joint_refits(
 def _placed_again(
     baseline: Baseline, chosen: list[Option], cfg: DiagnosisConfig, placed: Baseline | None
 ) -> tuple[Baseline, Baseline | None]:
-    """The free baseline fitted again on the force less the kept ``PLACED_AGAIN``
-    effects' fitted forces (its elements, knots and slip level), if the kept effects
+    """The free baseline fitted again on the force less the fitted forces of the kept
+    effects the blind elements took part of (``Policy.elements_take_part``) (its
+    elements, knots and slip level), if the kept effects
     then fit the held-out rows better, else ``baseline``; and the one fitted again.
     ``placed``: one already fitted again on ``baseline`` (by the refit with a Stribeck
     more, whose fitted forces differ a little), used instead of a new fit (7 of 68 s on
     reversal_transient-246 of the independent generator)."""
-    again = any(o.effect in PLACED_AGAIN for o in chosen)
+    again = any(o.policy.elements_take_part for o in chosen)
     if not again or not isinstance(baseline.basis, FreeBasis):
         return baseline, None
     before = Scorer(baseline.parts, chosen)
@@ -255,7 +248,7 @@ def _placed_again(
         at = fp.base.values.shape[1]
         for opt in (o for o in chosen if not o.is_filter):
             cols = opt.columns(fp, filters).values
-            if opt.effect in PLACED_AGAIN:
+            if opt.policy.elements_take_part:
                 force += cols @ before.theta[at : at + cols.shape[1]]
             at += cols.shape[1]
         less.append(dataclasses.replace(fp.part, force_N=fp.part.force_N - force))
@@ -340,13 +333,13 @@ def _train_rms(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> float:
 def _refine_shapes(
     parts: Sequence[FittedPart], chosen: list[Option], presliding_m: float
 ) -> list[Option]:
-    """The shapes of ``REFIT_SHAPES`` searched by training RMS, each trial first made to
+    """The shapes of the additive effects searched by training RMS, each trial first made to
     agree with its fitted size (a dwell's ``reach`` with its gain): searched freely, the
     gain and the time constant trade along a ridge the coordinate steps cannot follow,
     and the shape moves off the gain its windows are computed at."""
     out = list(chosen)
     for i, opt in enumerate(chosen):
-        if opt.effect in REFIT_SHAPES:
+        if not opt.is_filter and opt.effect.SHAPE:
             out[i] = _refine_shape(parts, [*out[:i], *out[i + 1 :]], opt, presliding_m)
     return out
 
@@ -359,7 +352,7 @@ def _refine_shape(
     rest = GramDesign(designs)  # the trials add their columns to it
     # an effect at few events is costed on every row; its size (which its shape must
     # agree with) is still the training rows' fit, as the model's coefficients are
-    whole = GramDesign(every_row(designs)) if opt.effect in WHOLE_ROWS else rest
+    whole = GramDesign(every_row(designs)) if opt.policy.at_events else rest
     filters = [o for o in others if o.is_filter]
     m = rest.lower.size
 
@@ -372,19 +365,20 @@ def _refine_shape(
         return agreed(fit(trial), lambda f: f[0], lambda f: f[1][m:], fit)
 
     first, _, first_cost = settled(opt)
-    if opt.effect in WHOLE_ROWS:  # from the best of its grid's time constants
-        fixed = {k: opt.shape[k] for k in (*opt.effect.SET_BY_SIZE, *DISCRETE) if k in opt.shape}
+    rules = opt.policy
+    if rules.at_events:  # from the best of its grid's time constants
+        fixed = {k: opt.shape[k] for k in (*rules.set_by_size, *rules.discrete) if k in opt.shape}
         grid = {
             tuple(v for k, v in sorted(shape.items()) if k not in fixed): {**shape, **fixed}
-            for shape in opt.effect.shape_grid(parts[0].ctx, fx.Leftover.empty(), presliding_m)
+            for shape in rules.shape_grid(parts[0].ctx, Leftover.empty(), presliding_m)
         }
         for shape in grid.values():
             trial, _, cost = settled(Option(opt.effect, shape))
             if cost < first_cost:
                 first, first_cost = trial, cost
-    bounds = opt.effect.shape_bounds(parts[0].ctx, presliding_m)
-    steps = opt.effect.shape_steps(parts[0].ctx)
+    bounds = rules.shape_bounds(parts[0].ctx, presliding_m)
+    steps = rules.shape_steps(parts[0].ctx)
     best = local_search(
-        first, lambda t: settled(t)[2], first_cost, bounds, opt.effect.SET_BY_SIZE, steps
+        first, lambda t: settled(t)[2], first_cost, bounds, rules.set_by_size, steps
     )
     return settled(best[0])[0]

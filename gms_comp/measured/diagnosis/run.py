@@ -42,6 +42,7 @@ from gms_comp.measured.diagnosis.refit import Extended, refit
 from gms_comp.measured.diagnosis.result import Diagnosis, verdict
 from gms_comp.measured.diagnosis.selection import Selection, select
 from gms_comp.measured.diagnosis.structure import residual_structure
+from gms_comp.measured.policies import policy
 from gms_comp.measured.traces import ForceKind, Trace
 from gms_comp.tables.table import EXTENSION_CONTEXT_KEYS
 
@@ -195,7 +196,7 @@ def _diagnose(
         seconds=time.perf_counter() - start,
         # the table's keys are Prepared's fields of the same names
         extension_context={key: getattr(prepared, key) for key in EXTENSION_CONTEXT_KEYS},
-        in_context=tuple(c.effect.in_context(main.ctx) for c in extended.ranked),
+        in_context=tuple(policy(c.effect).in_context(c.effect, main.ctx) for c in extended.ranked),
         caveats=caveats(
             main.part.kin.velocity_m_s, prepared.standstill_speed_m_s, named, near, bounded
         ),

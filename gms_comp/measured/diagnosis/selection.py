@@ -52,10 +52,11 @@ from gms_comp.measured.diagnosis.gain import lowers, lowers_locally
 from gms_comp.measured.diagnosis.level_free import (
     FREE_LEVEL_ROUNDS,
     FreeLevel,
-    stribeck_with_level,
+    with_free_level,
 )
 from gms_comp.measured.diagnosis.prepare import noise_at_rest
-from gms_comp.runtime import effects as fx
+from gms_comp.measured.policies import POLICIES, policy
+from gms_comp.runtime.effects import Effect
 
 # Relative steps of the local search on shape parameters after the grid, and the most
 # passes over the parameters at each step.
@@ -66,8 +67,9 @@ MAX_PASSES = 4
 CONSISTENT_WITHIN = 1.5
 # An effect acting locally has its shape from the LOCAL_STARTS best of its grid.
 LOCAL_STARTS = 3
-# Shape keys the local search does not step (a filter's order, a dwell gain's form). An
-# effect judged where it acts searches each value's shape (a form worth an effect first,
+# Shape keys the local search does not step (Policy.discrete: a filter's order, a dwell
+# gain's form). An effect judged where it acts searches each value's shape (a form worth
+# an effect first,
 # then by held-out RMS). Else, where the grid's best lowers the held-out RMS by the
 # margin, the best grid trial of each value is refined: a grid 1.6x apart in cut-off
 # picked a filter's order by which grid point fell nearer its delay (12 of 30 independent
@@ -76,7 +78,6 @@ LOCAL_STARTS = 3
 # were refined once: where the filter is large the true order's grid best was further
 # off (sensor_lowpass-188: baseline 4.58 N, grid bests 0.77 N for order 4 and 1.07 N for
 # order 3; refined, 0.63 and 0.55 N): 7 of 70 traces one order off.
-DISCRETE = ("order", "kept_through_turns")
 
 Progress = Callable[[str], None]
 
@@ -115,7 +116,7 @@ def local_search(
         for _ in range(MAX_PASSES):
             improved = False
             for key in opt.shape:
-                if key in DISCRETE or key in fixed:
+                if key in opt.policy.discrete or key in fixed:
                     continue
                 lo, hi = bounds.get(key, (0.0, np.inf))
                 for factor in (1.0 / step, step):
@@ -156,7 +157,7 @@ def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: floa
         # an effect sized against the friction it scales (a dwell's break-away gain)
         m = scorer.theta.size
         effect = trial.option.effect.from_coefficients(trial.theta[m:], trial.option.shape)
-        size = effect.relative_size(scorer.parts[0].ctx)
+        size = trial.option.policy.relative_size(effect, scorer.parts[0].ctx)
         if size is not None and size < cfg.min_effect_fraction:
             return False
     return float(np.max(np.abs(scorer.change(trial)))) >= cfg.min_effect_fraction * level_N
@@ -170,9 +171,8 @@ def select(
     rounds of ``start`` where given (``baseline``'s selection stopped by a smaller
     ``max_effects``), as if it had not stopped."""
     was = start or Selection(baseline, (), (), ())
-    drive = baseline.prepared.drive
-    # a drive force has its mass in the baseline; only a drive command can lead the force
-    pool = [e for e in fx.CATALOGUE.values() if e is not (fx.Inertia if drive else fx.DriveLag)]
+    kind = baseline.prepared.force_kind
+    pool = [p.effect for p in POLICIES.values() if kind in p.force_kinds]
     chosen, history, last = list(was.chosen), list(was.heldout_rms_N), list(was.last_round)
     pool = [e for e in pool if e not in {o.effect for o in chosen}]
     baseline, level_from, first, levels = was.baseline, was.level_from, was.first_round, was.levels
@@ -206,19 +206,24 @@ def select(
         kept = [t for t in last if admissible(cfg, scorer, t, level)]
         first = first if chosen else (scorer.heldout_rms_N, tuple(kept))
         take = min(kept, key=lambda t: t.heldout_rms_N) if kept else None
-        # where Stribeck at the baseline's level is taken, the refit searches its level
-        searched = fx.Stribeck in pool and len(chosen) < FREE_LEVEL_ROUNDS
-        if searched and (take is None or take.option.effect is not fx.Stribeck):
-            free = _free_level(cfg, baseline, scorer, last, level, levels)
+        # an effect at another slip level (where taken at the baseline's level, the
+        # refit searches its level)
+        for effect in (
+            (e for e in pool if policy(e).free_level) if len(chosen) < FREE_LEVEL_ROUNDS else ()
+        ):
+            if take is not None and take.option.effect is effect:
+                break
+            free = _free_level(cfg, effect, baseline, scorer, last, level, levels)
             if free is not None:
-                # Stribeck at another slip level: the selection goes on from that level
+                # the selection goes on from that level
                 level_from = level_from or baseline
                 baseline, take = free.baseline, free.trial
                 placed = _placed(baseline)
-                last = [take if t.option.effect is fx.Stribeck else t for t in last]
+                last = [take if t.option.effect is effect else t for t in last]
                 if not chosen:  # the first round's near tie is judged against it
-                    others = (t for t in first[1] if t.option.effect is not fx.Stribeck)
+                    others = (t for t in first[1] if t.option.effect is not effect)
                     first = (first[0], (*others, take))
+                break
         if take is None:
             break
         chosen.append(take.option)
@@ -263,8 +268,8 @@ def _gms_from(
 
 
 def _free_level(
-    cfg: DiagnosisConfig, baseline: Baseline, scorer: Scorer, rivals: Sequence[Trial],
-    level_N: float, fitted: dict[tuple[float, float], Baseline],
+    cfg: DiagnosisConfig, effect: type[Effect], baseline: Baseline, scorer: Scorer,
+    rivals: Sequence[Trial], level_N: float, fitted: dict[tuple[float, float], Baseline],
 ) -> FreeLevel | None:  # fmt: skip
     """Stribeck with the slip level free (:mod:`.level_free`), shape refined, if it is
     admissible on its level and lowers, as an effect is kept (:func:`~.gain.lowers`), the
@@ -276,11 +281,11 @@ def _free_level(
     position_ripple-117 of the independent generator (no Stribeck), round 2 went from
     0.502 N held out to 0.402 N at C_v 1.1 with Stribeck and to 0.402 N without; judged
     against the round's best only, Stribeck was kept and, carrying the level, ranked first."""
-    free = stribeck_with_level(baseline, scorer, fitted)
+    free = with_free_level(effect, baseline, scorer, fitted)
     if free is None or free.trial.heldout_rms_N >= free.scorer.heldout_rms_N:
         return None
     trial = _consistent(free.scorer, _refine(free.scorer, free.trial, free.baseline.presliding_m))
-    others = [t for t in rivals if t.option.effect is not fx.Stribeck]
+    others = [t for t in rivals if t.option.effect is not effect]
     here = [scorer.held_residual_N, *(t.held_residual_N for t in others)]
     levels = [free.scorer] if free.plain is free.scorer else [free.scorer, free.plain]
     there = [s.held_residual_N for s in levels]
@@ -293,15 +298,15 @@ def _free_level(
 
 
 def _per_value(trials: Sequence[Trial]) -> list[Trial]:
-    """The best trial of each value of the ``DISCRETE`` keys."""
+    """The best trial of each value of the policy's discrete keys."""
     return [min(f, key=lambda t: t.heldout_rms_N) for f in _forms(trials)]
 
 
 def _forms(trials: Sequence[Trial]) -> list[list[Trial]]:
-    """``trials`` by the values of their ``DISCRETE`` keys, in order."""
+    """``trials`` by the values of their policy's discrete keys, in order."""
     forms: dict[tuple[float, ...], list[Trial]] = {}
     for t in trials:
-        key = tuple(t.option.shape[k] for k in DISCRETE if k in t.option.shape)
+        key = tuple(t.option.shape[k] for k in t.option.policy.discrete if k in t.option.shape)
         forms.setdefault(key, []).append(t)
     return list(forms.values())
 
@@ -314,11 +319,9 @@ def _refine(scorer: Scorer, best: Trial, presliding_m: float) -> Trial:
         trials[id(opt)] = trial
         return trial.heldout_rms_N
 
-    effect, ctx = best.option.effect, scorer.parts[0].ctx
-    bounds = effect.shape_bounds(ctx, presliding_m)
-    opt, _ = local_search(
-        best.option, cost, best.heldout_rms_N, bounds, (), effect.shape_steps(ctx)
-    )
+    rules, ctx = best.option.policy, scorer.parts[0].ctx
+    bounds = rules.shape_bounds(ctx, presliding_m)
+    opt, _ = local_search(best.option, cost, best.heldout_rms_N, bounds, (), rules.shape_steps(ctx))
     return best if opt is best.option else trials[id(opt)]
 
 
@@ -331,7 +334,7 @@ def _local_shape(scorer: Scorer, trials: Sequence[Trial], presliding_m: float) -
     constant trade along a ridge, and a grid point off agreement lay off it (tau 0.5 s
     at a gain of 0.1 for a true 0.06 s and 0.05)."""
     m = scorer.theta.size
-    effect = trials[0].option.effect
+    rules = trials[0].option.policy
     settled: dict[tuple[tuple[str, float], ...], Trial] = {}
 
     def settle(opt: Option) -> Trial:
@@ -348,15 +351,15 @@ def _local_shape(scorer: Scorer, trials: Sequence[Trial], presliding_m: float) -
         trial = settle(opt)
         return scorer.whole_rms(trial.option) if consistent(scorer, trial) else np.inf
 
-    free = [k for k in effect.SHAPE if k not in effect.SET_BY_SIZE]
+    free = [k for k in rules.effect.SHAPE if k not in rules.set_by_size]
     starts: dict[tuple[float, ...], Trial] = {}
     for t in sorted(trials, key=lambda t: agreement(t.option, t.theta[m:])[1]):
         starts.setdefault(tuple(t.option.shape[k] for k in free), t)
     # settled: the LOCAL_STARTS best as they are (settling costs up to four fits each)
     ranked = sorted(starts.values(), key=lambda t: scorer.whole_rms(t.option))
     start = min((t.option for t in ranked[:LOCAL_STARTS]), key=cost)
-    bounds = effect.shape_bounds(scorer.parts[0].ctx, presliding_m)
-    opt, _ = local_search(start, cost, cost(start), bounds, effect.SET_BY_SIZE)
+    bounds = rules.shape_bounds(scorer.parts[0].ctx, presliding_m)
+    opt, _ = local_search(start, cost, cost(start), bounds, rules.set_by_size)
     return _polish(scorer, [settle(opt), *trials], bounds)
 
 

@@ -18,7 +18,6 @@ class Offset(Effect):
     """A constant force ``offset_N`` of either sign."""
 
     name: ClassVar[str] = "offset"
-    BASIS_READS_GMS: ClassVar[bool] = False
     offset_N: float
 
     @classmethod
