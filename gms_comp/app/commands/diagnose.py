@@ -208,6 +208,8 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
         if e.get("in_context"):
             figures = ", ".join(parameter_text(k, v) for k, v in e["in_context"].items())
             lines.append(f"        along this trace: {figures}")
+        if e.get("intervals_95"):
+            lines.append(f"        95 % intervals: {_intervals(e)}")
     level = doc.get("extended_slip_level", b["slip_level"])
     base_law = b.get("limit_follows_level", False)
     law = doc.get("extended_limit_follows_level", base_law)
@@ -227,6 +229,14 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
         )
     for caveat in doc.get("caveats", ()):
         lines.append(f"caveat: {caveat['text']}")
+    limits = doc.get("detection_limits") or {}
+    if limits:
+        lines.append(
+            "smallest effects this trace would have revealed (what it rules out where none "
+            "is named):"
+        )
+        for name, figures in limits.items():
+            lines.append(f"  {name}: {_limit(name, figures, doc)}")
     lines.append(
         f"gain: {doc['gain']:.1%} (held-out RMS {doc['baseline_rms_N']:.4g} N -> "
         f"{doc['extended_rms_N']:.4g} N)"
@@ -241,6 +251,31 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
                 f"{pct['baseline']:.2f} %, IDIM-LS reference {pct['reference_idim_ls']:.2f} %"
             )
     return "\n".join(lines)
+
+
+def _intervals(entry: Mapping[str, Any]) -> str:
+    """An effect's 95 % intervals as text, those that reach a bound said so."""
+    bounded = set(entry.get("interval_at_bound", ()))
+    parts = []
+    for name, (lo, hi) in entry["intervals_95"].items():
+        low, high = parameter_text(name, lo), parameter_text(name, hi)
+        text = f"{low.split(' = ')[0]} {low.split(' = ')[1]} to {high.split(' = ')[1]}"
+        parts.append(text + (" (reaches its bound: the trace does not pin it down)"
+                             if name in bounded else ""))  # fmt: skip
+    return ", ".join(parts)
+
+
+def _limit(name: str, figures: Mapping[str, float], doc: Mapping[str, Any]) -> str:
+    """One effect's detection limit as text: the figure it is told in, its range over the
+    shapes tried, what to record to see smaller ones."""
+    span = (doc.get("detection_limits_range") or {}).get(name, {})
+    told = str(next(iter(span), ""))
+    text = parameter_text(told, figures[told]) if told in figures else ""
+    lo, hi = span.get(told, (0.0, 0.0))
+    if hi > 1.01 * lo:
+        text += f" ({lo:.3g} to {hi:.3g} over the shapes tried)"
+    hint = (doc.get("to_see_smaller") or {}).get(name)
+    return text + (f"; to see smaller: {hint}" if hint else "")
 
 
 def _baseline_table(args: argparse.Namespace) -> GmsParams | None:

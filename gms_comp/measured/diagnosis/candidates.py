@@ -16,12 +16,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gms_comp.measured.diagnosis.baseline import FittedPart
+from gms_comp.measured.diagnosis.config import SelectionConfig
 from gms_comp.measured.diagnosis.design import (
     BATCH_COLUMNS,
     BoolArray,
     Columns,
     FloatArray,
     GramDesign,
+    IntArray,
     PartDesign,
     every_row,
     rms,
@@ -30,26 +32,6 @@ from gms_comp.measured.diagnosis.design import (
 from gms_comp.measured.policies import Leftover, Policy, policy
 from gms_comp.runtime import effects as fx
 
-# Where an option acts (where an effect on few samples is judged): the fewest held-out
-# samples that hold this share of its columns' energy, and of those the ones at least
-# SUPPORT_LEVEL of the peak. Counted by magnitude alone (from 1e-3 of the peak), a dwell
-# gain's raised elements that had not slipped when a move ended held a few per cent of
-# their stretch through the standstill after it, and that tail took most of the held-out
-# support (6210 samples for 456 where the force was); by energy alone, a raised element
-# that never slipped again through a run of small reversals held 5 % of the peak for
-# thousands of samples (held-out support 4043 samples where the truth's has 247; the
-# true dwell's shape then lowered the RMS there by 29 %, z 2.1; on the 10 % level 40 %,
-# z 4.7).
-SUPPORT_ENERGY = 0.9
-SUPPORT_LEVEL = 0.1
-# An effect acting on less than this share of the held-out samples is judged where it
-# acts (acts_locally).
-LOCAL_SHARE = 0.25
-# An effect that acts at few events is judged on all of them, each by a fit without it
-# (:meth:`Scorer.left_out`): rows where it acts less than EVENT_GAP_S apart are one
-# event, and the events are dealt into at most LEFT_OUT_FOLDS folds.
-EVENT_GAP_S = 0.02
-LEFT_OUT_FOLDS = 10
 # The columns of this many options are kept by a Scorer (one round of the selection).
 COLUMNS_KEPT = 32
 
@@ -146,6 +128,8 @@ class Scorer:
         The baseline's parts (their path contexts carry the GMS force to scale).
     chosen
         The options kept so far.
+    rules
+        Where an option acts and how its events are left out (``[diagnosis.selection]``).
     every_sample
         When the parts are every k-th sample of the trace: the same parts along every
         sample (made when first asked), where an effect at few events is judged
@@ -153,10 +137,11 @@ class Scorer:
     """
 
     def __init__(
-        self, parts: Sequence[FittedPart], chosen: Sequence[Option],
+        self, parts: Sequence[FittedPart], chosen: Sequence[Option], rules: SelectionConfig,
         every_sample: Callable[[], Sequence[FittedPart]] | None = None,
     ) -> None:  # fmt: skip
         self._every_sample = every_sample
+        self.rules = rules
         self.parts = tuple(parts)
         self.chosen = tuple(chosen)
         self.filters = [o for o in chosen if o.is_filter]
@@ -178,7 +163,7 @@ class Scorer:
         to 2.1-3.0 on every 2nd sample (3.9-5.9 on the other half), and was not kept."""
         if self._every_sample is None:
             return self
-        return Scorer(self._every_sample(), self.chosen)
+        return Scorer(self._every_sample(), self.chosen, self.rules)
 
     def model(self, index: int = 0) -> FloatArray:
         """The current design's force on part ``index``."""
@@ -221,7 +206,7 @@ class Scorer:
             def support(opt: Option = opt, extra: list[Columns] = extra) -> BoolArray:
                 pairs = zip(extra, self.parts, strict=True)
                 return np.concatenate(
-                    [where_acting(opt.acting(fp, e)[fp.part.held]) for e, fp in pairs]
+                    [where_acting(opt.acting(fp, e)[fp.part.held], self.rules) for e, fp in pairs]
                 )
 
             out.append(Trial(opt, rms(held), theta, held, support))
@@ -272,15 +257,20 @@ class Scorer:
         """Residuals without and with ``trial``'s option at every row where it acts
         (training and held out, every part, in time order), each event's from the design
         fitted on the training rows without it (:meth:`~.design.GramDesign.left_out`;
-        an event: rows where it acts less than ``EVENT_GAP_S`` apart). An effect at a
+        an event: rows where it acts less than ``event_gap_s`` apart). An effect at a
         few events (a dwell gain at a few starts) is judged on all of them, none by a fit
         that saw it; the held-out rows alone may hold none of them."""
         extra = self.extra(trial.option)
+        return self.gram.left_out(extra, self.events(trial), self.rules.left_out_folds)
+
+    def events(self, trial: Trial) -> list[list[IntArray]]:
+        """The rows (each part's, in time order) where ``trial``'s option acts, in events:
+        rows less than ``event_gap_s`` apart are one."""
         events = []
-        for e, fp in zip(extra, self.parts, strict=True):
-            gap = max(1, round(EVENT_GAP_S / max(fp.ctx.sample_time_s, 1e-12)))
-            events.append(runs(where_acting(trial.option.acting(fp, e)), gap))
-        return self.gram.left_out(extra, events, LEFT_OUT_FOLDS)
+        for e, fp in zip(self.extra(trial.option), self.parts, strict=True):
+            gap = max(1, round(self.rules.event_gap_s / max(fp.ctx.sample_time_s, 1e-12)))
+            events.append(runs(where_acting(trial.option.acting(fp, e), self.rules), gap))
+        return events
 
     def told_apart(self, opt: Option) -> BoolArray | None:
         """The held-out rows (every part's, in order) whose motion can tell ``opt``'s
@@ -325,12 +315,12 @@ def fit_on(
     return base.trial_train_rms(extra)
 
 
-def acts_locally(trial: Trial) -> bool:
-    """Whether ``trial``'s option acts on less than ``LOCAL_SHARE`` of the held-out rows."""
-    return bool(np.count_nonzero(trial.support) < LOCAL_SHARE * trial.support.size)
+def acts_locally(trial: Trial, rules: SelectionConfig) -> bool:
+    """Whether ``trial``'s option acts on less than ``local_share`` of the held-out rows."""
+    return bool(np.count_nonzero(trial.support) < rules.local_share * trial.support.size)
 
 
-def best_held_out(m: int, trials: Sequence[Trial]) -> Trial:
+def best_held_out(m: int, trials: Sequence[Trial], rules: SelectionConfig) -> Trial:
     """The trial that holds out best (``m``: the design's columns before the trial's);
     where that one's effect was fitted at zero (the design as it was) and acts on many
     rows, the best of those fitted above zero that act locally, if one does: the held-out
@@ -340,15 +330,17 @@ def best_held_out(m: int, trials: Sequence[Trial]) -> Trial:
     trial was v_s 1.0 mm/s at zero on 44 % of the rows, and the fall was never judged at
     its events)."""
     best = min(trials, key=lambda t: t.heldout_rms_N)
-    if best.option.is_filter or np.any(best.theta[m:]) or acts_locally(best):
+    if best.option.is_filter or np.any(best.theta[m:]) or acts_locally(best, rules):
         return best
-    fitted = [t for t in trials if np.any(t.theta[m:]) and acts_locally(t)]
+    fitted = [t for t in trials if np.any(t.theta[m:]) and acts_locally(t, rules)]
     return min(fitted, key=lambda t: t.heldout_rms_N) if fitted else best
 
 
-def where_acting(values: FloatArray) -> BoolArray:
-    """The rows where design columns ``values`` act (``SUPPORT_ENERGY``, ``SUPPORT_LEVEL``),
-    each column scaled to its peak."""
+def where_acting(values: FloatArray, rules: SelectionConfig) -> BoolArray:
+    """The rows where design columns ``values`` act, each column scaled to its peak: the
+    fewest rows holding ``support_energy`` of their energy, of those the ones at least
+    ``support_level`` of the peak (a raised element's tail through a standstill holds a
+    few per cent of its stretch for thousands of rows: not where it acts)."""
     acting = np.zeros(values.shape[0], dtype=bool)
     if values.shape[0] == 0:  # a part without held-out rows (the training trace)
         return acting
@@ -357,13 +349,13 @@ def where_acting(values: FloatArray) -> BoolArray:
     total = float(np.sum(energy))
     if total == 0.0:
         return acting
-    least = _top_share(energy, SUPPORT_ENERGY * total)
+    least = _top_share(energy, rules.support_energy * total)
     if least is not None:
-        return (energy >= least) & (energy >= SUPPORT_LEVEL**2)
+        return (energy >= least) & (energy >= rules.support_level**2)
     order = np.argsort(energy)[::-1]
-    count = int(np.searchsorted(np.cumsum(energy[order]), SUPPORT_ENERGY * total)) + 1
+    count = int(np.searchsorted(np.cumsum(energy[order]), rules.support_energy * total)) + 1
     acting[order[:count]] = True
-    return acting & (energy >= SUPPORT_LEVEL**2)
+    return acting & (energy >= rules.support_level**2)
 
 
 def _top_share(energy: FloatArray, share: float) -> float | None:

@@ -268,6 +268,40 @@ class GramDesign:
         theta = solve_gram(gram, rhs, self.lower)
         return theta, self._held_y - np.concatenate(self._held_prediction(values, theta))
 
+    def train_sse_of(self, values: Sequence[FloatArray]) -> float:
+        """The training sum of squares another design on the same rows and bounds leaves
+        (``values``: one (rows, m) array per part), fitted on the training rows."""
+        gram, rhs = self._train_gram(values)
+        return max(self._yy + solve_gram_sse(gram, rhs, self.lower)[1], 0.0)
+
+    @property
+    def train_sse(self) -> float:
+        """The training sum of squares the design leaves, fitted on the training rows."""
+        return max(self._yy + solve_gram_sse(self.gram, self.rhs, self.lower)[1], 0.0)
+
+    @property
+    def n_train(self) -> int:
+        """How many training rows the design is fitted on."""
+        return self._n_train
+
+    def jackknife(self, groups: int) -> list[FloatArray]:
+        """The coefficients fitted with each of ``groups`` contiguous groups of the training
+        rows (in time, part after part) left out in turn (a delete-a-group jackknife)."""
+        rows = np.concatenate(self._train_rows)
+        part = np.concatenate([np.full(r.size, p) for p, r in enumerate(self._train_rows)])
+        edges = np.linspace(0, rows.size, groups + 1).astype(int)
+        out = []
+        for lo, hi in itertools.pairwise(edges):
+            gram, rhs = self.gram.copy(), self.rhs.copy()
+            for p in range(len(self.parts)):
+                taken = rows[lo:hi][part[lo:hi] == p]
+                if taken.size:
+                    a = self.parts[p].columns.values[taken]
+                    gram -= a.T @ a
+                    rhs -= self.parts[p].force_N[taken] @ a
+            out.append(solve_gram(gram, rhs, self.lower))
+        return out
+
     def cross_products(
         self, values: Sequence[FloatArray]
     ) -> tuple[FloatArray, FloatArray, FloatArray]:

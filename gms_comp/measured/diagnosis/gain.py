@@ -6,14 +6,11 @@ from __future__ import annotations
 import numpy as np
 
 from gms_comp.arrays import FloatArray
-from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.config import SelectionConfig
 from gms_comp.measured.diagnosis.design import rms
 
-# Contiguous chunks of held-out samples for the significance of an improvement.
-SIGNIFICANCE_CHUNKS = 50
 
-
-def significance(current: FloatArray, new: FloatArray) -> float:
+def significance(current: FloatArray, new: FloatArray, chunks: int) -> float:
     """z statistic of the drop in squared residual, its spread from contiguous chunks.
 
     With ``d = current - new`` (what the trial changes), the drop is
@@ -22,7 +19,7 @@ def significance(current: FloatArray, new: FloatArray) -> float:
     over contiguous chunks (residuals are correlated in time, chunks much less so). Unlike
     a t test of the chunks' gains, this does not cap an effect that acts in a few chunks
     only (fast moves, break-aways) at the square root of their number."""
-    n = min(SIGNIFICANCE_CHUNKS, current.size // 2)
+    n = min(chunks, current.size // 2)
     if n < 2:
         return 0.0
     change = current - new
@@ -32,17 +29,19 @@ def significance(current: FloatArray, new: FloatArray) -> float:
     return drop / spread if spread > 0 else (np.inf if drop > 0 else 0.0)
 
 
-def lowers(cfg: DiagnosisConfig, current: FloatArray, new: FloatArray) -> bool:
+def lowers(rules: SelectionConfig, current: FloatArray, new: FloatArray) -> bool:
     """Whether the held-out residual ``new`` is worth an effect against ``current``: its
     RMS lower by the margin, or by the small margin and significant."""
     rms0, rms1 = rms(current), rms(new)
-    return rms1 <= (1.0 - cfg.margin) * rms0 or (
-        rms1 <= (1.0 - cfg.small_margin) * rms0 and significance(current, new) >= cfg.significance_t
+    z = rules.significance_t
+    return rms1 <= (1.0 - rules.margin) * rms0 or (
+        rms1 <= (1.0 - rules.small_margin) * rms0
+        and significance(current, new, rules.significance_chunks) >= z
     )
 
 
 def lowers_locally(
-    cfg: DiagnosisConfig, current: FloatArray, new: FloatArray, noise_N: float
+    rules: SelectionConfig, current: FloatArray, new: FloatArray, noise_N: float
 ) -> bool:
     """Whether an effect that acts on few rows is worth keeping, judged there
     (``current``, ``new``: the residuals at those rows without and with it, every event
@@ -58,6 +57,6 @@ def lowers_locally(
     above0, above1 = (np.sqrt(max(rms(r) ** 2 - noise_N**2, 0.0)) for r in (current, new))
     return (
         above0 > 0.0
-        and above1 <= (1.0 - cfg.local_margin) * above0
-        and significance(current, new) >= cfg.local_significance_t
+        and above1 <= (1.0 - rules.local_margin) * above0
+        and significance(current, new, rules.significance_chunks) >= rules.local_significance_t
     )

@@ -7,9 +7,9 @@ sliding speed (stribeck-120 of the independent generator: C_v 1.14, v_t 0.35 mm/
 ratio 1.24 at 6.4 mm/s), the GMS alone fits best with C_v 1, and a Stribeck column on
 that level lowers the held-out RMS by 2.5 % only (0.578 -> 0.564 N; a drift was named).
 With the level at C_v 1.1 it lowers it to 0.295 N. So where the design still leaves
-above the noise (``FREE_LEVEL_RATIO``), Stribeck is also scored on the baseline
+above the noise (``free_level_ratio``), Stribeck is also scored on the baseline
 refitted at each level of a grid (``FREE_LEVEL_STEPS`` x ``FREE_TRANSITIONS``, about
-0.2 s each on 170 000 samples), in the first ``FREE_LEVEL_ROUNDS`` rounds of the
+0.2 s each on 170 000 samples), in the first ``free_level_rounds`` rounds of the
 selection where the round's best is not Stribeck at the baseline's level (that one's
 level is searched with it in the refit; taken over by the level-free search, stribeck-105
 of the independent generator came out with ratio - 1 0.61 off, 0.19 from the refit).
@@ -28,16 +28,9 @@ import numpy as np
 from gms_comp.measured.diagnosis.baseline import Baseline, fitted_on, refit_gms_force
 from gms_comp.measured.diagnosis.basis import FreeBasis
 from gms_comp.measured.diagnosis.candidates import Scorer, Trial, options
-from gms_comp.measured.diagnosis.prepare import force_noise
 from gms_comp.measured.diagnosis.slip_level import SLIP_LEVEL_RANGE, transition_range
 from gms_comp.runtime import effects as fx
 
-# Scored only where the design of the effects kept so far leaves more than this many
-# times the force's noise held out (effect-free traces of the independent generator:
-# 1.00-1.05; a stribeck trace's offset kept, 1.5; pair_offset_stribeck-121's, 1.22: at
-# 1.4 its Stribeck, ratio 1.13 at 9.7 mm/s on C_v 1.087, was missed, at 1.15 found with
-# ratio 1.129 and C_v 1.087).
-FREE_LEVEL_RATIO = 1.15
 # The grid of slip levels: C_v above the baseline's by these steps (a fall towards
 # sliding speed drags the level down: on eight stribeck traces of the independent
 # generator the best level lay 0.05-0.2 above the baseline's), the transition velocity
@@ -49,9 +42,6 @@ FREE_TRANSITIONS = 3
 # reached over 0.64 mm/s, a fall of ratio 1.12 at 2.7 mm/s, Stribeck held out 0.1902 N
 # on the grid's best, 0.132 mm/s, beside 0.1951 N for drift at the baseline's level: not
 # the margin, `offset` alone was named; 0.1723 N at 0.51 mm/s).
-# Searched in the first rounds only (3.5 s a round on pair_drift_offset-124, run in four
-# rounds there): an effect ranked third or later is small, and its level is the refit's.
-FREE_LEVEL_ROUNDS = 2
 
 
 @dataclass(frozen=True)
@@ -71,14 +61,15 @@ def with_free_level(
 ) -> FreeLevel | None:  # fmt: skip
     """``effect``'s best trial (held-out RMS) on top of the options ``now`` holds, over the
     grid of slip levels; None for a table's baseline, or where ``now`` leaves less than
-    ``FREE_LEVEL_RATIO`` x the noise held out. ``fitted``: the baselines fitted so far on
+    ``free_level_ratio`` x the noise held out. ``fitted``: the baselines fitted so far on
     the grid's levels, by (C_v, transition velocity), kept across the selection's rounds
     (one baseline on one level does not depend on the effects chosen; 15 fits a round,
     and 2 around the best)."""
     basis = baseline.basis
     if not isinstance(basis, FreeBasis):
         return None
-    if now.heldout_rms_N < FREE_LEVEL_RATIO * force_noise(baseline.parts[0].part.force_N):
+    ratio = now.rules.free_level_ratio
+    if now.heldout_rms_N < ratio * baseline.prepared.noise_N:
         return None
     chosen = now.chosen
     fitted = {} if fitted is None else fitted
@@ -94,12 +85,12 @@ def with_free_level(
             level = dataclasses.replace(basis, slip_level=cv, transition_velocity_m_s=vt)
             fitted[key] = fitted_on(baseline.prepared, level, baseline.info)
         rebased = fitted[key]
-        scorer = Scorer(rebased.parts, chosen)
+        scorer = Scorer(rebased.parts, chosen, now.rules)
         if chosen:
             # the GMS force that Stribeck scales, fitted beside the effects kept
             parts = refit_gms_force(rebased.parts, scorer.theta, rebased.basis)
             rebased = dataclasses.replace(rebased, parts=parts)
-            scorer = Scorer(parts, chosen)
+            scorer = Scorer(parts, chosen, now.rules)
         if plain is None or scorer.heldout_rms_N < plain.heldout_rms_N:
             plain = scorer
         grid = options(effect, scorer, rebased.presliding_m)

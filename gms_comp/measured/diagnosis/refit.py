@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -44,7 +44,7 @@ from gms_comp.measured.diagnosis.candidates import (
     fit_on,
     widths,
 )
-from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.config import DiagnosisConfig, SelectionConfig
 from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
 from gms_comp.measured.diagnosis.gain import lowers
 from gms_comp.measured.diagnosis.level_search import (
@@ -83,6 +83,12 @@ class Extended:
     # the free baseline re-placed on the force less the kept effects the elements took part
     # of, if fitted
     placed: Baseline | None = None
+    # the final design: its parts (the GMS force the effects scale), the kept options in
+    # the ranked order, and the coefficients fitted on the training rows
+    parts: tuple[FittedPart, ...] = ()
+    chosen: tuple[Option, ...] = ()
+    theta: FloatArray = field(default_factory=lambda: np.zeros(0))
+    basis: Basis | None = None
 
 
 def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
@@ -120,7 +126,8 @@ def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
                   selection.last_round),
         cfg, placed, alone=True,
     )  # fmt: skip
-    return extended if lowers(cfg, without.held_residual_N, extended.held_residual_N) else without
+    worth = lowers(cfg.selection, without.held_residual_N, extended.held_residual_N)
+    return extended if worth else without
 
 
 def _judged(selection: Selection) -> Option | None:
@@ -156,19 +163,21 @@ def refit_kept(
     chosen = list(selection.chosen)
     history = list(selection.heldout_rms_N)
     start, placed = _placed_again(selection.baseline, chosen, cfg, placed)
-    baseline = sensed_again(start, chosen)
+    baseline = sensed_again(start, chosen, cfg.selection)
     parts = baseline.parts
     basis = baseline.basis
     if chosen:
         slip = refine_slip_level(baseline, lambda p: _train_rms(p, chosen))
         if slip is not None:
             basis, parts = slip, rebased(baseline, slip)
-        chosen, history = _prune(parts, chosen, history, cfg, baseline.sliding_force_N)
+        chosen, history = _prune(
+            parts, chosen, history, cfg, baseline.sliding_force_N, baseline.prepared.noise_N
+        )
     theta = GramDesign(design(parts, chosen)).fit()
     parts, chosen, theta = _joint_refits(parts, basis, chosen, theta, baseline.presliding_m)
     basis, parts, chosen, theta = _with_level(baseline, basis, parts, chosen, theta, alone)
     forces = _added_forces(parts, chosen, theta)
-    kept = _floored(chosen, forces, cfg.min_effect_fraction * baseline.sliding_force_N)
+    kept = _floored(chosen, forces, cfg.selection.min_effect_fraction * baseline.sliding_force_N)
     if len(kept) < len(chosen):
         history = [h for o, h in zip(chosen, history, strict=True) if o in kept]
         chosen = kept
@@ -181,7 +190,7 @@ def refit_kept(
         basis, parts, chosen, theta = _with_level(baseline, basis, parts, chosen, theta, alone)
         forces = _added_forces(parts, chosen, theta)
     if len(chosen) > 1:
-        order, history = _rank(parts, chosen, forces)
+        order, history = _rank(parts, chosen, forces, cfg.selection)
         if order != chosen:
             chosen = order
             theta = GramDesign(design(parts, chosen)).fit()
@@ -189,7 +198,10 @@ def refit_kept(
     ranked = tuple(Ranked(e, h) for e, h in zip(extensions[: len(chosen)], history, strict=True))
     predictions = tuple(extended_force(fp, gms, extensions) for fp in parts)
     held = held_residual(parts, predictions)
-    return Extended(baseline, ranked, gms, tuple(extensions), predictions, rms(held), held, placed)
+    return Extended(
+        baseline, ranked, gms, tuple(extensions), predictions, rms(held), held, placed, parts,
+        tuple(chosen), theta, basis,
+    )  # fmt: skip
 
 
 def _with_level(
@@ -237,9 +249,9 @@ def _placed_again(
     again = any(o.policy.elements_take_part for o in chosen)
     if not again or not isinstance(baseline.basis, FreeBasis):
         return baseline, None
-    before = Scorer(baseline.parts, chosen)
+    before = Scorer(baseline.parts, chosen, cfg.selection)
     if placed is not None:
-        better = Scorer(placed.parts, chosen).heldout_rms_N < before.heldout_rms_N
+        better = Scorer(placed.parts, chosen, cfg.selection).heldout_rms_N < before.heldout_rms_N
         return (placed if better else baseline), placed
     filters = [o for o in chosen if o.is_filter]
     less = []
@@ -254,14 +266,14 @@ def _placed_again(
         less.append(dataclasses.replace(fp.part, force_N=fp.part.force_N - force))
     prepared = dataclasses.replace(baseline.prepared, parts=tuple(less))
     trial = placed_on(baseline.prepared, fit_baseline(prepared, cfg, None))
-    if Scorer(trial.parts, chosen).heldout_rms_N < before.heldout_rms_N:
+    if Scorer(trial.parts, chosen, cfg.selection).heldout_rms_N < before.heldout_rms_N:
         return trial, trial
     return baseline, trial
 
 
 def _prune(
     parts: Sequence[FittedPart], chosen: list[Option], history: list[float],
-    cfg: DiagnosisConfig, level_N: float,
+    cfg: DiagnosisConfig, level_N: float, noise_N: float,
 ) -> tuple[list[Option], list[float]]:  # fmt: skip
     """Drop a kept effect that is no longer admissible on top of all the others (it
     stood in for a slip level the blind baseline had not found, or for an effect kept
@@ -274,8 +286,8 @@ def _prune(
         others = [o for o in kept if o is not opt]
         if not others:
             continue
-        trial = Scorer(parts, others)
-        if not admissible(cfg, trial, trial.score(opt), level_N):
+        trial = Scorer(parts, others, cfg.selection)
+        if not admissible(cfg, trial, trial.score(opt), level_N, noise_N):
             kept = others
     return kept, [h for o, h in zip(chosen, history, strict=True) if o in kept]
 
@@ -313,8 +325,9 @@ def _floored(chosen: list[Option], forces: list[FloatArray], floor_N: float) -> 
 
 
 def _rank(
-    parts: Sequence[FittedPart], chosen: list[Option], forces: list[FloatArray]
-) -> tuple[list[Option], list[float]]:
+    parts: Sequence[FittedPart], chosen: list[Option], forces: list[FloatArray],
+    rules: SelectionConfig,
+) -> tuple[list[Option], list[float]]:  # fmt: skip
     """The kept effects, the largest force first (the RMS along the trace of what each
     adds to the jointly fitted model, ``forces``: :func:`_added_forces`; the selection
     takes first what lowers the held-out RMS most, and a level effect such as a drift is
@@ -322,7 +335,8 @@ def _rank(
     added in that order."""
     size = {id(o): rms(f) for o, f in zip(chosen, forces, strict=True)}
     ranked = sorted(chosen, key=lambda o: size[id(o)], reverse=True)
-    return ranked, [Scorer(parts, ranked[: i + 1]).heldout_rms_N for i in range(len(ranked))]
+    held = [Scorer(parts, ranked[: i + 1], rules).heldout_rms_N for i in range(len(ranked))]
+    return ranked, held
 
 
 def _train_rms(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> float:

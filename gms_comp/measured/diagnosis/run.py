@@ -34,7 +34,9 @@ from gms_comp.measured.diagnosis.candidates import Scorer, describe_trials
 from gms_comp.measured.diagnosis.config import DiagnosisConfig, load_diagnosis_config
 from gms_comp.measured.diagnosis.coverage import at_bound, caveats
 from gms_comp.measured.diagnosis.design import rms
+from gms_comp.measured.diagnosis.detection import detection_limits
 from gms_comp.measured.diagnosis.gain import lowers
+from gms_comp.measured.diagnosis.intervals import intervals
 from gms_comp.measured.diagnosis.level_search import extended_force
 from gms_comp.measured.diagnosis.phases import phase_masks, residual_by_phase
 from gms_comp.measured.diagnosis.prepare import Prepared, encoder_force_ratio, prepare
@@ -97,9 +99,9 @@ def _reads_better(
     if not selection.chosen:
         return False
     first = list(selection.chosen[:1])
-    return lowers(
-        cfg, Scorer(counts.parts, first).held_residual_N, Scorer(read.parts, first).held_residual_N
-    )
+    rules = cfg.selection
+    before = Scorer(counts.parts, first, rules).held_residual_N
+    return lowers(rules, before, Scorer(read.parts, first, rules).held_residual_N)
 
 
 def _along_every_sample(
@@ -137,7 +139,7 @@ def _diagnose(
         read = prepare(trace, force_kind, validation, cfg, dequantise=True, held=same)
         again = fit_baseline(read, cfg, table)
         info["counts_heldout_rms_N"] = baseline.heldout_rms_N
-        if again.heldout_rms_N < (1.0 - cfg.margin) * baseline.heldout_rms_N:
+        if again.heldout_rms_N < (1.0 - cfg.selection.margin) * baseline.heldout_rms_N:
             prepared, baseline = read, again
         else:
             as_motion = read, again
@@ -158,7 +160,7 @@ def _diagnose(
     judged, predictions = _along_every_sample(baseline, extended)
     structure = residual_structure(
         judged.parts, predictions, judged.presliding_m, judged.sliding_force_N,
-        cfg.unknown_ratio, cfg.unknown_fraction,
+        prepared.noise_N, cfg.structure,
     )  # fmt: skip
     main = judged.parts[0]
     residual = main.part.force_N - judged.predictions[0]
@@ -179,7 +181,9 @@ def _diagnose(
     named = [c.effect.name for c in extended.ranked]
     design_rms, first = selection.first_round
     near = design_rms, [(t.option.effect.name, t.heldout_rms_N) for t in first]
-    bounded = at_bound([c.effect for c in extended.ranked], main.ctx, judged.presliding_m)
+    bounded = at_bound(
+        [c.effect for c in extended.ranked], main.ctx, judged.presliding_m, cfg.caveats.at_bound
+    )
     return Diagnosis(
         effect=verdict(extended.ranked, structure),
         ranked=extended.ranked,
@@ -197,7 +201,23 @@ def _diagnose(
         # the table's keys are Prepared's fields of the same names
         extension_context={key: getattr(prepared, key) for key in EXTENSION_CONTEXT_KEYS},
         in_context=tuple(policy(c.effect).in_context(c.effect, main.ctx) for c in extended.ranked),
+        intervals=intervals(extended, prepared.noise_N, cfg),
+        limits=detection_limits(
+            extended.parts,
+            extended.chosen,
+            prepared.force_kind,
+            baseline.sliding_force_N,
+            baseline.presliding_m,
+            prepared.noise_N,
+            cfg,
+        ),
         caveats=caveats(
-            main.part.kin.velocity_m_s, prepared.standstill_speed_m_s, named, near, bounded
+            main.part.kin.velocity_m_s,
+            prepared.standstill_speed_m_s,
+            named,
+            cfg.caveats,
+            near,
+            bounded,
+            prepared.force_kind,
         ),
     )

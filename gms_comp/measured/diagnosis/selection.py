@@ -13,7 +13,7 @@ events); and in any case it must change the model force somewhere by
 lower the held-out error a little). An effect
 that names the rows where the motion tells it from others (``Effect.told_apart``: a
 direction asymmetry, at speeds the trace reaches both ways) must lower it there too. In the
-first ``FREE_LEVEL_ROUNDS`` rounds Stribeck is also scored with the baseline's slip
+first ``free_level_rounds`` rounds Stribeck is also scored with the baseline's slip
 level free (:mod:`.level_free`); where that wins, the selection goes on from that level.
 After each effect kept, the GMS force the effects scale is the one fitted beside it.
 Every search here is bounded: rounds by ``max_effects``, grids by the catalogue, local search
@@ -50,11 +50,9 @@ from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import rms
 from gms_comp.measured.diagnosis.gain import lowers, lowers_locally
 from gms_comp.measured.diagnosis.level_free import (
-    FREE_LEVEL_ROUNDS,
     FreeLevel,
     with_free_level,
 )
-from gms_comp.measured.diagnosis.prepare import noise_at_rest
 from gms_comp.measured.policies import POLICIES, policy
 from gms_comp.runtime.effects import Effect
 
@@ -62,9 +60,6 @@ from gms_comp.runtime.effects import Effect
 # passes over the parameters at each step.
 REFINE_STEPS = (1.3, 1.08)
 MAX_PASSES = 4
-# How far apart (a factor) a shape and the one its fitted size implies may be for the
-# effect to be kept (:func:`.agreement.agreed` steps them together first).
-CONSISTENT_WITHIN = 1.5
 # An effect acting locally has its shape from the LOCAL_STARTS best of its grid.
 LOCAL_STARTS = 3
 # Shape keys the local search does not step (Policy.discrete: a filter's order, a dwell
@@ -132,25 +127,26 @@ def local_search(
     return best, best_cost
 
 
-def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: float) -> bool:
+def admissible(
+    cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: float, noise_N: float
+) -> bool:
     """Whether ``trial`` is worth an effect (see the module docstring)."""
     rms0, held0 = scorer.heldout_rms_N, scorer.held_residual_N
-    local = acts_locally(trial)
+    rules = cfg.selection
+    local = acts_locally(trial, rules)
     if trial.heldout_rms_N >= rms0 and not local:
         return False
-    worth = lowers(cfg, held0, trial.held_residual_N)
+    worth = lowers(rules, held0, trial.held_residual_N)
     if not worth and local:
         # judged where it acts, at every event by a fit without it: an effect at a few
         # events may have none or one held out (and the held-out RMS not lowered)
         judge = scorer.judge  # on every sample
         local0, local1 = judge.left_out(trial)
-        main = judge.parts[0].part
-        noise = noise_at_rest(main.force_N, main.path_position_m)
-        worth = lowers_locally(cfg, local0, local1, noise)
+        worth = lowers_locally(rules, local0, local1, noise_N)
     apart = scorer.told_apart(trial.option)
     if worth and apart is not None:
         # and where the motion tells it from the effects it could stand in for
-        worth = bool(np.any(apart)) and lowers(cfg, held0[apart], trial.held_residual_N[apart])
+        worth = bool(np.any(apart)) and lowers(rules, held0[apart], trial.held_residual_N[apart])
     if not worth or not consistent(scorer, trial):
         return False
     if not trial.option.is_filter:
@@ -158,9 +154,9 @@ def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: floa
         m = scorer.theta.size
         effect = trial.option.effect.from_coefficients(trial.theta[m:], trial.option.shape)
         size = trial.option.policy.relative_size(effect, scorer.parts[0].ctx)
-        if size is not None and size < cfg.min_effect_fraction:
+        if size is not None and size < rules.min_effect_fraction:
             return False
-    return float(np.max(np.abs(scorer.change(trial)))) >= cfg.min_effect_fraction * level_N
+    return float(np.max(np.abs(scorer.change(trial)))) >= rules.min_effect_fraction * level_N
 
 
 def select(
@@ -179,8 +175,9 @@ def select(
     gms_theta, placed = was.gms_theta, _placed(baseline)
     parts, every = _gms_from(baseline, gms_theta, placed)
     level = (level_from or baseline).sliding_force_N
+    noise = baseline.prepared.noise_N
     while pool and len(chosen) < cfg.max_effects:
-        scorer = Scorer(parts, chosen, every)
+        scorer = Scorer(parts, chosen, cfg.selection, every)
         last = []
         for i, effect in enumerate(pool):
             if progress:
@@ -188,28 +185,30 @@ def select(
             trials = scorer.score_all(options(effect, scorer, baseline.presliding_m))
             if not trials:
                 continue
-            best = best_held_out(scorer.theta.size, trials)
-            if acts_locally(best):
+            best = best_held_out(scorer.theta.size, trials, cfg.selection)
+            if acts_locally(best, cfg.selection):
                 # its shape from all its events (the held-out rows may hold one or none),
                 # each form's apart: the forms worth an effect first, then held out
                 shaped = [_local_shape(scorer, f, baseline.presliding_m) for f in _forms(trials)]
-                best = min(shaped, key=lambda t: (not admissible(cfg, scorer, t, level),
+                best = min(shaped, key=lambda t: (not admissible(cfg, scorer, t, level, noise),
                                                   t.heldout_rms_N))  # fmt: skip
             elif best.heldout_rms_N < scorer.heldout_rms_N:
                 # each order refined only where the effect could be kept by its margin
                 # alone (each is a local search: 10 % of a typical trace's time)
-                big = best.heldout_rms_N <= (1.0 - cfg.margin) * scorer.heldout_rms_N
+                big = best.heldout_rms_N <= (1.0 - cfg.selection.margin) * scorer.heldout_rms_N
                 starts = _per_value(trials) if big else [best]
                 refined = [_refine(scorer, t, baseline.presliding_m) for t in starts]
                 best = _consistent(scorer, min(refined, key=lambda t: t.heldout_rms_N))
             last.append(best)
-        kept = [t for t in last if admissible(cfg, scorer, t, level)]
+        kept = [t for t in last if admissible(cfg, scorer, t, level, noise)]
         first = first if chosen else (scorer.heldout_rms_N, tuple(kept))
         take = min(kept, key=lambda t: t.heldout_rms_N) if kept else None
         # an effect at another slip level (where taken at the baseline's level, the
         # refit searches its level)
         for effect in (
-            (e for e in pool if policy(e).free_level) if len(chosen) < FREE_LEVEL_ROUNDS else ()
+            (e for e in pool if policy(e).free_level)
+            if len(chosen) < cfg.selection.free_level_rounds
+            else ()
         ):
             if take is not None and take.option.effect is effect:
                 break
@@ -290,9 +289,9 @@ def _free_level(
     levels = [free.scorer] if free.plain is free.scorer else [free.scorer, free.plain]
     there = [s.held_residual_N for s in levels]
     there += [s.score(t.option).held_residual_N for s in levels for t in others]
-    if not lowers(cfg, min(here + there, key=rms), trial.held_residual_N):
+    if not lowers(cfg.selection, min(here + there, key=rms), trial.held_residual_N):
         return None
-    if not admissible(cfg, free.scorer, trial, level_N):
+    if not admissible(cfg, free.scorer, trial, level_N, baseline.prepared.noise_N):
         return None
     return dataclasses.replace(free, trial=trial)
 
@@ -367,7 +366,7 @@ def _polish(
     scorer: Scorer, trials: Sequence[Trial], bounds: dict[str, tuple[float, float]]
 ) -> Trial:
     """The best of ``trials`` by :meth:`~.candidates.Scorer.whole_rms` among those whose
-    shape agrees with their size within ``CONSISTENT_WITHIN`` (the first when none
+    shape agrees with their size within ``consistent_within`` (the first when none
     does), then a bounded local search of every key, the size-set ones too, over shapes
     that stay within that agreement. Settling walks each shape to exact agreement, and
     where the effect's column is attenuated against the truth (a dwell gain's fitted
@@ -408,8 +407,8 @@ def _consistent(scorer: Scorer, trial: Trial) -> Trial:
 
 
 def consistent(scorer: Scorer, trial: Trial) -> bool:
-    """Whether ``trial``'s shape agrees with its size within ``CONSISTENT_WITHIN``."""
-    return _agreement(scorer, trial)[1] <= CONSISTENT_WITHIN
+    """Whether ``trial``'s shape agrees with its size within ``consistent_within``."""
+    return _agreement(scorer, trial)[1] <= scorer.rules.consistent_within
 
 
 def _agreement(scorer: Scorer, trial: Trial) -> tuple[dict[str, float], float]:

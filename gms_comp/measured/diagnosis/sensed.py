@@ -36,6 +36,7 @@ from gms_comp.measured.diagnosis.baseline import (
 )
 from gms_comp.measured.diagnosis.basis import FreeBasis, Sensor
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, through
+from gms_comp.measured.diagnosis.config import SelectionConfig
 from gms_comp.measured.diagnosis.prepare import Prepared
 
 
@@ -54,7 +55,7 @@ def fitted_through(
     return dataclasses.replace(moved, sensed=None), theta
 
 
-def sensed_again(baseline: Baseline, chosen: list[Option]) -> Baseline:
+def sensed_again(baseline: Baseline, chosen: list[Option], rules: SelectionConfig) -> Baseline:
     """``baseline`` with its elements fitted again through ``chosen``'s filters
     (:func:`fitted_through`) if ``chosen`` then fits the held-out rows better; else
     ``baseline`` (also without a filter kept, or with a table baseline)."""
@@ -65,6 +66,9 @@ def sensed_again(baseline: Baseline, chosen: list[Option]) -> Baseline:
     basis, theta = fitted_through(baseline.prepared, baseline.basis, sensed)
     info = {**baseline.info, "fitted_through": [o.effect.name for o in filters]}
     trial = _baseline(baseline.prepared, basis, theta, info)
-    if Scorer(trial.parts, chosen).heldout_rms_N < Scorer(baseline.parts, chosen).heldout_rms_N:
+    if (
+        Scorer(trial.parts, chosen, rules).heldout_rms_N
+        < Scorer(baseline.parts, chosen, rules).heldout_rms_N
+    ):
         return trial
     return baseline

@@ -69,6 +69,9 @@ class Policy:
     # one.
     size_parameter: ClassVar[str] = ""
     to_see_smaller: ClassVar[str] = ""
+    # The figure its detection limit is told in (a parameter or an in-context figure;
+    # empty: the size parameter).
+    limit_figure: ClassVar[str] = ""
 
     @classmethod
     def shape_grid(cls, ctx: fx.Context, left: Leftover, presliding_m: float) -> list[Shape]:
@@ -115,6 +118,18 @@ class Policy:
         """Its size along ``ctx`` as a fraction of the friction it scales, where that is
         how it is judged worth keeping (None: by the force it changes)."""
         return None
+
+    @classmethod
+    def detection_shapes(cls, ctx: fx.Context, presliding_m: float, count: int) -> list[Shape]:
+        """At most ``count`` shapes spread over its grid (discrete keys at their first
+        value), where its detection limit is worked out."""
+        grid = cls.shape_grid(ctx, Leftover.empty(), presliding_m)
+        if not grid:
+            return []
+        first = {k: grid[0][k] for k in cls.discrete if k in grid[0]}
+        grid = [s for s in grid if all(s[k] == v for k, v in first.items())]
+        picks = np.unique(np.linspace(0, len(grid) - 1, count).round().astype(int))
+        return [grid[i] for i in picks]
 
     @classmethod
     def size(cls, effect: fx.Effect) -> float:

@@ -27,6 +27,11 @@ class DriveLagPolicy(Policy):
         return [{"lag_s": float(lag)} for lag in np.geomspace(0.05 * dt, 3 * dt, 12)]
 
     @classmethod
+    def detection_shapes(cls, ctx: fx.Context, presliding_m: float, count: int) -> list[Shape]:
+        """The lag alone (it is what the limit states)."""
+        return [{"lag_s": ctx.sample_time_s}]
+
+    @classmethod
     def shape_bounds(cls, ctx: fx.Context, presliding_m: float) -> dict[str, tuple[float, float]]:
         """Lags within 0.01 and 10 sample times."""
         return {"lag_s": (0.01 * ctx.sample_time_s, 10 * ctx.sample_time_s)}

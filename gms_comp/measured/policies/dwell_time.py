@@ -33,6 +33,7 @@ class DwellTimePolicy(Policy):
     discrete: ClassVar[tuple[str, ...]] = ("kept_through_turns",)
     at_events: ClassVar[bool] = True
     size_parameter: ClassVar[str] = "gamma"
+    limit_figure: ClassVar[str] = "gain_after_median_dwell"
     to_see_smaller: ClassVar[str] = (
         "more starts after standstills, of lengths spread over a decade or more"
     )

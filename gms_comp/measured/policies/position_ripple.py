@@ -71,6 +71,15 @@ class PositionRipplePolicy(Policy):
         return tuple(float(fine ** (0.5 / 3**k)) for k in range(REFINED_STEPS))
 
     @classmethod
+    def detection_shapes(cls, ctx: fx.Context, presliding_m: float, count: int) -> list[Shape]:
+        """Wavelengths spread (in log) over the scanned range, none at its ends."""
+        lo, hi = cls._range(ctx)
+        if hi <= lo:
+            return []
+        inner = np.geomspace(lo, hi, count + 2)[1:-1]
+        return [{"wavelength_m": float(w)} for w in inner]
+
+    @classmethod
     def shape_bounds(cls, ctx: fx.Context, presliding_m: float) -> dict[str, tuple[float, float]]:
         """The scanned range of wavelengths."""
         return {"wavelength_m": cls._range(ctx)}

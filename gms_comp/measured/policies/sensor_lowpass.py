@@ -41,6 +41,11 @@ class SensorLowpassPolicy(Policy):
         ]
 
     @classmethod
+    def detection_shapes(cls, ctx: fx.Context, presliding_m: float, count: int) -> list[Shape]:
+        """A second-order filter (its cut-off is what the limit states)."""
+        return [{"cutoff_Hz": 0.25 / ctx.sample_time_s, "order": 2.0}]
+
+    @classmethod
     def shape_bounds(cls, ctx: fx.Context, presliding_m: float) -> dict[str, tuple[float, float]]:
         """Cut-offs within 1/3000 and 0.99 of Nyquist (the order is not searched)."""
         nyquist = 0.5 / ctx.sample_time_s

@@ -1,0 +1,214 @@
+"""What ``none`` rules out: for each catalogue effect, the smallest size this trace would
+have revealed (docs/diagnosis-method.md, section 7).
+
+On the final model less that effect, at a few shapes of its grid: an effect of size s
+added to the trace adds s x to the force (x its column for a unit size); the model without
+it, fitted on the training rows to the force with it, leaves what it cannot absorb of s x
+on the held-out rows, and with it in the design what it leaves now. The limit is the
+least s for which the selection's criterion keeps it (by prediction, or where it acts
+with its events left out, and by size), found by bisection in log; for a filter, the
+largest filter of the fitted model force the criterion keeps. The limit stated is the
+one at the shape where it is the median of the shapes'; the range over them goes with
+it. A limit is linear algebra on the final design: the competition between effects in
+the selection and a level that would move to carry part of an effect are not in it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from gms_comp.arrays import FloatArray
+from gms_comp.measured.diagnosis.baseline import FittedPart
+from gms_comp.measured.diagnosis.candidates import Option, Scorer, acts_locally
+from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.design import GramDesign, PartDesign, solve_gram
+from gms_comp.measured.diagnosis.gain import lowers, lowers_locally
+from gms_comp.measured.policies import POLICIES, Policy
+from gms_comp.runtime import effects as fx
+
+# The size bracket: from the size floor, doubled at most this often to find a size kept.
+DOUBLINGS = 40
+
+
+@dataclass(frozen=True)
+class Limit:
+    """The just-detectable effect at the stated shape, and the smallest and largest limit
+    over the shapes tried."""
+
+    effect: fx.Effect
+    # its parameters (the spec's names) and what they come to along the trace
+    # (``Policy.in_context``: a dwell gain after the median standstill)
+    figures: dict[str, float]
+    # the figure the limit is told in (``Policy.limit_figure``) at the smallest and the
+    # largest limit over the shapes tried
+    span: dict[str, list[float]]
+
+
+def detection_limits(
+    parts: Sequence[FittedPart], chosen: Sequence[Option], kind: str, level_N: float,
+    presliding_m: float, noise_N: float, cfg: DiagnosisConfig,
+) -> dict[str, Limit]:  # fmt: skip
+    """Each catalogue effect's limit on the design of ``chosen`` (the final model's
+    options) less that effect; ``kind``: the force kind (effects for it only)."""
+    out: dict[str, Limit] = {}
+    scorers: dict[tuple[int, ...], Scorer] = {}
+    for name, rules in POLICIES.items():
+        if kind not in rules.force_kinds:
+            continue
+        others = [o for o in chosen if o.effect is not rules.effect]
+        key = tuple(id(o) for o in others)
+        if key not in scorers:
+            scorers[key] = Scorer(parts, others, cfg.selection)
+        scorer = scorers[key]
+        shapes = rules.detection_shapes(parts[0].ctx, presliding_m, cfg.detection.shapes)
+        found = [
+            e
+            for shape in shapes
+            if (e := _limit(scorer, rules, shape, level_N, noise_N, cfg)) is not None
+        ]
+        if found:
+            found.sort(key=rules.size)
+            figures = [{**e.parameters(), **rules.in_context(e, parts[0].ctx)} for e in found]
+            told = rules.limit_figure or rules.size_parameter
+            span = sorted(float(f[told]) for f in figures if told in f)
+            stated = (len(found) - 1) // 2
+            out[name] = Limit(found[stated], figures[stated], {told: [span[0], span[-1]]})
+    return out
+
+
+def _limit(
+    scorer: Scorer, rules: type[Policy], shape: dict[str, float], level_N: float,
+    noise_N: float, cfg: DiagnosisConfig,
+) -> fx.Effect | None:  # fmt: skip
+    """The smallest effect of ``rules`` at ``shape`` the criterion keeps, or None."""
+    if issubclass(rules.effect, fx.FilterEffect):
+        return _filter_limit(scorer, rules, shape, level_N, cfg)
+    effect: fx.Effect | None = None
+    for _ in range(2 if rules.set_by_size else 1):  # a shape set by the size: at the limit's
+        opt = Option(rules.effect, shape)
+        keep, unit = _additive(scorer, opt, level_N, noise_N, cfg)
+        size = _bisect(keep, _floor(scorer, opt, unit, level_N, cfg), cfg.detection.bisections)
+        if size is None:
+            return effect
+        effect = rules.effect.from_coefficients(size * unit, shape)
+        shape = rules.consistent_shape(size * unit, shape)
+    return effect
+
+
+def _additive(
+    scorer: Scorer, opt: Option, level_N: float, noise_N: float, cfg: DiagnosisConfig
+) -> tuple[Callable[[float], bool], FloatArray]:
+    """Whether the criterion keeps ``opt``'s effect added at a size (its first
+    coefficient), and the unit coefficients (one size's)."""
+    rules = cfg.selection
+    trial = scorer.score(opt)
+    extra = scorer.extra(opt)
+    unit = np.zeros(extra[0].values.shape[1])
+    unit[0] = 1.0
+    x = [e.values @ unit for e in extra]
+    gram = scorer.gram
+    pushed = gram.cross_products([c[:, None] for c in x])[0][:, 0]
+    held_x = np.concatenate([c[fp.part.held] for c, fp in zip(x, scorer.parts, strict=True)])
+    apart = scorer.told_apart(opt)
+    local = acts_locally(trial, rules)
+    events = None
+    if local:
+        base_y, new_y = scorer.left_out(trial)
+        moved = GramDesign(
+            [
+                PartDesign(d.columns, c, d.train, d.held)
+                for d, c in zip(scorer.designs, x, strict=True)
+            ]
+        )
+        base_x = moved.left_out(extra, scorer.events(trial), rules.left_out_folds)[0]
+        events = (base_y, base_x, new_y)
+    peak = float(np.max(np.abs(x[0]))) if x[0].size else 0.0
+
+    def keep(size: float) -> bool:
+        theta = solve_gram(gram.gram, gram.rhs + size * pushed, gram.lower)
+        base = gram.held_residual(theta) + size * held_x
+        worth = lowers(rules, base, trial.held_residual_N)
+        if not worth and events is not None:
+            worth = lowers_locally(rules, events[0] + size * events[1], events[2], noise_N)
+        if worth and apart is not None:
+            worth = bool(np.any(apart)) and lowers(rules, base[apart], trial.held_residual_N[apart])
+        effect = opt.effect.from_coefficients(size * unit, opt.shape)
+        relative = opt.policy.relative_size(effect, scorer.parts[0].ctx)
+        if relative is not None and relative < rules.min_effect_fraction:
+            return False
+        return worth and size * peak >= rules.min_effect_fraction * level_N
+
+    return keep, unit
+
+
+def _floor(
+    scorer: Scorer, opt: Option, unit: FloatArray, level_N: float, cfg: DiagnosisConfig
+) -> float:
+    """Where the bisection starts: the size at which the effect's force reaches the size
+    floor (a tiny size where the column is flat)."""
+    x = scorer.extra(opt)[0].values @ unit
+    peak = float(np.max(np.abs(x))) if x.size else 0.0
+    return cfg.selection.min_effect_fraction * level_N / peak if peak > 0.0 else 1e-12
+
+
+def _bisect(keep: Callable[[float], bool], start: float, halvings: int) -> float | None:
+    """The least size ``keep`` holds for, from ``start`` (doubled until it holds, then the
+    bracket halved ``halvings`` times in log); None if it never holds."""
+    lo, hi = start, start
+    if keep(start):
+        return start
+    for _ in range(DOUBLINGS):
+        lo, hi = hi, 2.0 * hi
+        if keep(hi):
+            break
+    else:
+        return None
+    for _ in range(halvings):
+        mid = math.sqrt(lo * hi)
+        lo, hi = (lo, mid) if keep(mid) else (mid, hi)
+    return hi
+
+
+def _filter_limit(
+    scorer: Scorer, rules: type[Policy], shape: dict[str, float], level_N: float,
+    cfg: DiagnosisConfig,
+) -> fx.Effect | None:  # fmt: skip
+    """The smallest (``Policy.size``) filter of the model force in its shape bounds that
+    the criterion keeps, or None: its size key bisected in log between its bounds."""
+    effect_cls = rules.effect
+    assert issubclass(effect_cls, fx.FilterEffect)
+    key = rules.size_parameter
+    lo, hi = rules.shape_bounds(scorer.parts[0].ctx, 0.0)[key]
+    gram = scorer.gram
+    models = [scorer.model(i) for i in range(len(scorer.parts))]
+
+    def at(u: float) -> fx.FilterEffect:
+        return effect_cls.from_shape({**shape, key: lo * (hi / lo) ** u})
+
+    # u runs from the smallest filter to the largest
+    grow = rules.size(at(1.0)) > rules.size(at(0.0))
+
+    def keep(u: float) -> bool:
+        filt = at(u if grow else 1.0 - u)
+        d = [
+            filt.filter_columns(m, fp.ctx.sample_time_s) - m
+            for m, fp in zip(models, scorer.parts, strict=True)
+        ]
+        pushed = gram.cross_products([c[:, None] for c in d])[0][:, 0]
+        theta = solve_gram(gram.gram, gram.rhs + pushed, gram.lower)
+        held_d = np.concatenate([c[fp.part.held] for c, fp in zip(d, scorer.parts, strict=True)])
+        base = gram.held_residual(theta) + held_d
+        big = float(np.max(np.abs(d[0]))) >= cfg.selection.min_effect_fraction * level_N
+        return big and lowers(cfg.selection, base, scorer.held_residual_N)
+
+    if not keep(1.0):
+        return None
+    small, large = 0.0, 1.0
+    for _ in range(cfg.detection.bisections):
+        mid = 0.5 * (small + large)
+        small, large = (small, mid) if keep(mid) else (mid, large)
+    return at(large if grow else 1.0 - large)

@@ -1,0 +1,254 @@
+"""How sure: a 95 % interval for every parameter of every kept effect (docs/diagnosis-method.md,
+section 6).
+
+The final model is linearised about its fit (Gauss-Newton): its design columns (the GMS
+elements, the kept effects' coefficients, through the kept filters) and, for each
+nonlinear parameter, the model's change per step of it (the slip level C_v and v_t of a
+free baseline, every kept effect's shape in log). On that linear system over the training
+rows, a delete-a-group jackknife (each of ``jackknife_blocks`` contiguous blocks left out
+in turn) gives every parameter's spread: the noise, its correlation in time, the trades
+between parameters (a Stribeck ratio with its speed and with the slip level) and the
+misfit where it changes along the trace. What stays the same all along the trace (a model
+form the catalogue does not quite have) it cannot see: each interval also holds the most
+the misfit left above the noise could move the parameter were it spread over
+``misfit_patterns`` independent patterns. Intervals are clipped at the search bounds of a
+shape and at the physical bound of the coefficients; reaching either is said
+(``at_bound``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from gms_comp.arrays import FloatArray
+from gms_comp.measured.diagnosis.baseline import FittedPart, rebased, refit_gms_force
+from gms_comp.measured.diagnosis.basis import FreeBasis
+from gms_comp.measured.diagnosis.candidates import Option, design, widths
+from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.design import Columns, GramDesign, PartDesign
+from gms_comp.measured.diagnosis.refit import Extended
+from gms_comp.runtime import effects as fx
+
+# Steps of the linearisation: C_v by LEVEL_STEP, v_t and every shape by a factor e^LOG_STEP.
+LEVEL_STEP = 0.01
+LOG_STEP = 0.02
+
+
+@dataclass(frozen=True)
+class Intervals:
+    """One kept effect's intervals (``bounds``: name -> (low, high)) and the names whose
+    interval reaches the bound of its search or of its physical range."""
+
+    bounds: dict[str, tuple[float, float]]
+    at_bound: tuple[str, ...]
+
+    def to_json(self) -> dict[str, list[float]]:
+        """``{name: [low, high]}``."""
+        return {k: [float(lo), float(hi)] for k, (lo, hi) in self.bounds.items()}
+
+
+Column = tuple[int | None, str, list[FloatArray]]  # owner (a chosen index), key, per part
+
+
+def intervals(extended: Extended, noise_N: float, cfg: DiagnosisConfig) -> tuple[Intervals, ...]:
+    """The intervals of each kept effect of ``extended`` (ranked order); ``noise_N``: the
+    force's noise (what the misfit is above)."""
+    parts, chosen, theta = extended.parts, list(extended.chosen), extended.theta
+    if not chosen:
+        return ()
+    designs = design(parts, chosen)
+    model = [d.columns.values @ theta for d in designs]
+    moved = _level_columns(extended, model) + _shape_columns(parts, chosen, theta, model)
+    gram = GramDesign([
+        PartDesign(
+            Columns(np.column_stack([d.columns.values, *(c[2][i] for c in moved)]),
+                    np.concatenate([d.columns.lower, np.full(len(moved), -np.inf)])),
+            d.force_N, d.train, d.held,
+        )
+        for i, d in enumerate(designs)
+    ])  # fmt: skip
+    rules = cfg.intervals
+    replicates = np.array(gram.jackknife(rules.jackknife_blocks))
+    groups = replicates.shape[0]
+    t = float(stats.t.ppf(0.5 + rules.level / 2, groups - 1))
+    inverse = np.asarray(np.linalg.pinv(gram.gram), dtype=np.float64)
+    train_rms = math.sqrt(gram.train_sse / max(gram.n_train, 1))
+    misfit = math.sqrt(max(train_rms**2 - noise_N**2, 0.0))
+    allowance = misfit * math.sqrt(gram.n_train / rules.misfit_patterns)
+    out = []
+    start = parts[0].base.values.shape[1]
+    fitted = np.concatenate([theta, np.zeros(len(moved))])
+    for k, (opt, width) in enumerate(zip(chosen, widths(parts, chosen), strict=True)):
+        coords = list(range(start, start + width))
+        start += width
+        keys = [(theta.size + j, c[1]) for j, c in enumerate(moved) if c[0] == k]
+        coords += [j for j, _ in keys]
+        named = _reader(opt, slice(start - width, start), keys, parts[0].ctx)
+        centre = named(fitted)
+        spread = _jackknife(named, replicates, centre)
+        reach = _allowance(named, fitted, coords, inverse, allowance)
+        out.append(
+            _bounded(opt, width, centre, spread, reach, t, extended.baseline.presliding_m, parts)
+        )
+    return tuple(out)
+
+
+def _level_columns(extended: Extended, model: Sequence[FloatArray]) -> list[Column]:
+    """The model's change per step of the free baseline's C_v and (in log) v_t, the GMS
+    force the effects scale moved with it; none for a table's baseline."""
+    basis = extended.basis
+    if not isinstance(basis, FreeBasis):
+        return []
+    out: list[Column] = []
+    cv = basis.slip_level + LEVEL_STEP
+    steps = (
+        ("slip_level", LEVEL_STEP, dataclasses.replace(basis, slip_level=cv)),
+        ("transition_velocity_m_s", LOG_STEP, dataclasses.replace(
+            basis, transition_velocity_m_s=basis.transition_velocity_m_s * math.exp(LOG_STEP))),
+    )  # fmt: skip
+    for key, step, level in steps:
+        parts = refit_gms_force(rebased(extended.baseline, level), extended.theta, level)
+        changed = [d.columns.values @ extended.theta for d in design(parts, extended.chosen)]
+        out.append((None, key, [(a - b) / step for a, b in zip(changed, model, strict=True)]))
+    return out
+
+
+def _shape_columns(
+    parts: Sequence[FittedPart], chosen: list[Option], theta: FloatArray,
+    model: Sequence[FloatArray],
+) -> list[Column]:  # fmt: skip
+    """The model's change per step (in log) of each kept effect's continuous shape keys."""
+    out: list[Column] = []
+    for k, opt in enumerate(chosen):
+        for key in continuous(opt):
+            other = opt.with_value(key, opt.shape[key] * math.exp(LOG_STEP))
+            swapped = [other if o is opt else o for o in chosen]
+            changed = [d.columns.values @ theta for d in design(parts, swapped)]
+            out.append((k, key, [(a - b) / LOG_STEP for a, b in zip(changed, model, strict=True)]))
+    return out
+
+
+def continuous(opt: Option) -> list[str]:
+    """The shape keys of ``opt`` that are neither set by its size nor discrete."""
+    rules = opt.policy
+    return [k for k in opt.shape if k not in (*rules.set_by_size, *rules.discrete)]
+
+
+Reader = Callable[[FloatArray], dict[str, float]]
+
+
+def _reader(
+    opt: Option, coefficients: slice, keys: Sequence[tuple[int, str]], ctx: fx.Context
+) -> Reader:
+    """The named parameters (and in-context figures) of ``opt``'s effect at a vector of
+    the linearised system: its coefficients, its shape moved by the log steps at ``keys``."""
+
+    def named(vector: FloatArray) -> dict[str, float]:
+        shape = dict(opt.shape)
+        for j, key in keys:
+            shape[key] = opt.shape[key] * math.exp(float(vector[j]))
+        if issubclass(opt.effect, fx.FilterEffect):
+            effect: fx.Effect = opt.effect.from_shape(shape)
+        else:
+            effect = opt.effect.from_coefficients(vector[coefficients], shape)
+        values = {**effect.parameters(), **opt.policy.in_context(effect, ctx)}
+        return {k: v for k, v in values.items() if k not in _fixed(opt)}
+
+    return named
+
+
+def _fixed(opt: Option) -> tuple[str, ...]:
+    """The parameters no interval is given for (set by the size, discrete)."""
+    return (*opt.policy.set_by_size, *opt.policy.discrete)
+
+
+def _jackknife(named: Reader, replicates: FloatArray, centre: dict[str, float]) -> dict[str, float]:
+    """Each parameter's jackknife standard error (a phase's replicates on the same turn)."""
+    values = [named(r) for r in replicates]
+    groups = len(values)
+    out = {}
+    for name, value in centre.items():
+        v = np.array([x[name] for x in values])
+        if name.endswith("_rad"):
+            v = value + np.angle(np.exp(1j * (v - value)))
+        out[name] = math.sqrt((groups - 1) / groups * float(np.sum((v - v.mean()) ** 2)))
+    return out
+
+
+def _allowance(
+    named: Reader, fitted: FloatArray, coords: Sequence[int], inverse: FloatArray, size: float
+) -> dict[str, float]:
+    """The most a misfit of ``size`` (its norm over the training rows, spread over the
+    patterns) could move each parameter: ``size`` sqrt(g' G^-1 g), g the parameter's
+    gradient over ``coords`` of the linearised system."""
+    centre = named(fitted)
+    sub = inverse[np.ix_(coords, coords)]
+    scale = np.sqrt(np.maximum(np.diag(sub), 1e-300))
+    grads = {name: np.zeros(len(coords)) for name in centre}
+    for i, j in enumerate(coords):
+        step = 1e-3 * scale[i]
+        moved = fitted.copy()
+        moved[j] += step
+        after = named(moved)
+        for name, value in centre.items():
+            change = after[name] - value
+            if name.endswith("_rad"):
+                change = math.remainder(change, 2 * math.pi)
+            grads[name][i] = change / step
+    return {name: size * math.sqrt(max(float(g @ sub @ g), 0.0)) for name, g in grads.items()}
+
+
+def _bounded(
+    opt: Option, width: int, centre: dict[str, float], spread: dict[str, float],
+    reach: dict[str, float],
+    t: float, presliding_m: float, parts: Sequence[FittedPart],
+) -> Intervals:  # fmt: skip
+    """The intervals ``centre +- (t spread + reach)``, a shape's in log, clipped at its
+    search bounds and at the coefficients' physical bound."""
+    rules = opt.policy
+    bounds = rules.shape_bounds(parts[0].ctx, presliding_m)
+    floors = _floors(opt, width)
+    found: dict[str, tuple[float, float]] = {}
+    at: list[str] = []
+    for name, value in centre.items():
+        half = t * spread[name] + reach[name]
+        if half <= 0.0:  # a figure of the trace alone (its median standstill)
+            continue
+        if name in opt.shape:
+            relative = half / max(abs(value), 1e-300)
+            lo, hi = value * math.exp(-relative), value * math.exp(relative)
+            lo_b, hi_b = bounds.get(name, (0.0, math.inf))
+            if lo <= lo_b or hi >= hi_b:
+                at.append(name)
+            found[name] = (max(lo, lo_b), min(hi, hi_b))
+            continue
+        lo, hi = value - half, value + half
+        floor = floors.get(name)
+        if floor is not None and lo <= floor:
+            at.append(name)
+            lo = floor
+        found[name] = (lo, hi)
+    return Intervals(found, tuple(at))
+
+
+def _floors(opt: Option, width: int) -> dict[str, float]:
+    """The lowest value each coefficient-given parameter can take (``width``: how many
+    coefficients): at the coefficients' physical bound; a magnitude (it reads alike at
+    negated coefficients) at zero."""
+    if opt.is_filter:
+        return {}
+    rules = opt.policy
+    ones = np.ones(width)
+    plus = opt.effect.from_coefficients(ones, opt.shape).parameters()
+    minus = opt.effect.from_coefficients(-ones, opt.shape).parameters()
+    floors = {k: 0.0 for k, v in plus.items() if k not in opt.shape and v == minus[k] and v > 0}
+    if math.isfinite(rules.coefficient_lower):
+        lowest = opt.effect.from_coefficients(np.full(width, rules.coefficient_lower), opt.shape)
+        floors |= {k: v for k, v in lowest.parameters().items() if k not in opt.shape}
+    return floors
