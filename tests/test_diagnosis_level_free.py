@@ -18,7 +18,7 @@ from gms_comp.measured.diagnosis.baseline import Baseline, fit_baseline
 from gms_comp.measured.diagnosis.basis import FreeBasis
 from gms_comp.measured.diagnosis.candidates import Option, Scorer
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
-from gms_comp.measured.diagnosis.level_free import with_free_level
+from gms_comp.measured.diagnosis.level import with_free_level
 from gms_comp.measured.diagnosis.prepare import prepare
 from gms_comp.measured.traces import Trace
 from gms_comp.runtime import effects as fx

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
-from gms_comp.measured.diagnosis.gain import lowers_locally
+from gms_comp.measured.diagnosis.criterion import lowers_locally
 
 NOISE = 0.13  # N
 

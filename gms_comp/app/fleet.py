@@ -79,9 +79,10 @@ def diagnose_one(job: FleetJob) -> dict[str, Any]:
         "caveats": doc["caveats"],
     }
     if job.report_dir is not None:
-        from gms_comp.measured.diagnosis.report import write_report
+        from gms_comp.app.report import write_report
 
-        row["report"] = [str(p) for p in write_report(result, job.report_dir)]
+        page = {**doc, "trace": job.trace, "config": job.config}
+        row["report"] = [str(p) for p in write_report(result, page, job.report_dir)]
     return row
 
 

@@ -135,6 +135,7 @@ def run(args: argparse.Namespace) -> int:
         result = diagnose(trace, kind, validation, config, _baseline_table(args), say)
     doc = result.to_json()
     doc["trace"] = str(args.trace)
+    doc["config"] = args.config
     if trace.force_kind == "drive" and kind == "drive":
         doc.update(_benchmark_errors(trace, validation, result))
     if args.closed_loop is not None:
@@ -152,11 +153,9 @@ def run(args: argparse.Namespace) -> int:
         doc["table"] = str(table_path)
         written.append(str(table_path))
     if args.report:
-        from gms_comp.measured.diagnosis.report import (
-            write_report,  # matplotlib only when asked for
-        )
+        from gms_comp.app.report import write_report  # matplotlib only when asked for
 
-        doc["report"] = [str(p) for p in write_report(result, args.report)]
+        doc["report"] = [str(p) for p in write_report(result, doc, args.report)]
         written.extend(doc["report"])
     if args.json:
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
@@ -317,6 +316,10 @@ def _run_fleet(args: argparse.Namespace, mapping: Mapping[str, str] | None) -> i
         with dask_client(args.scheduler, args.workers, cli_tls(args)) as client:
             fleet = diagnose_fleet(jobs, client=client)
     written = [p for row in fleet["traces"] for p in row.get("report", [])]
+    if args.report:
+        from gms_comp.app.report import write_overview  # matplotlib only when asked for
+
+        written.append(str(write_overview(fleet, args.report, names)))
     if args.json:
         sys.stdout.write(json.dumps(fleet, indent=2) + "\n")
     else:

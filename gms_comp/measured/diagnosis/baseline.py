@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -421,29 +421,3 @@ def rebased_gram(baseline: Baseline, basis: Basis) -> tuple[tuple[FittedPart, ..
         [PartDesign(fp.base, fp.part.force_N, fp.part.train, fp.part.held) for fp in parts]
     )
     return refit_gms_force(parts, gram.fit(), basis), gram
-
-
-def refine_slip_level(
-    baseline: Baseline, cost: Callable[[tuple[FittedPart, ...]], float]
-) -> FreeBasis | None:
-    """The free basis's slip level, transition velocity and transition shape searched
-    again with ``cost`` (the training RMS with the kept effects present): bounded
-    coordinate steps from the baseline's, or None for a table baseline."""
-    basis = baseline.basis
-    if not isinstance(basis, FreeBasis):
-        return None
-    vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in baseline.prepared.parts)
-    # with the kept effects present the cap is lifted (a third of the top speed): on the
-    # EMPS ball screw the extended model's level keeps rising above 2 mm/s (capped there,
-    # the training error went from 2.48 % to 2.69 %; at a third, 2.27 % train, 2.96 %)
-    vt_range = transition_range(vmax, np.inf)
-
-    # a level met again (a step back, the vertex's C_v +- step) is not refitted
-    @functools.cache
-    def level_cost(level: Level) -> float:
-        return cost(rebased(baseline, FreeBasis(basis.breakaway_m, *level)))
-
-    best = coordinate_steps(
-        (cost(baseline.parts), level_of(basis)), level_cost, REFINE_STEPS, vt_range
-    )
-    return FreeBasis(basis.breakaway_m, *best[1])

@@ -25,8 +25,8 @@ from gms_comp.arrays import FloatArray
 from gms_comp.measured.diagnosis.baseline import FittedPart
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, acts_locally
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.criterion import lowers, lowers_locally
 from gms_comp.measured.diagnosis.design import GramDesign, PartDesign, solve_gram
-from gms_comp.measured.diagnosis.gain import lowers, lowers_locally
 from gms_comp.measured.policies import POLICIES, Policy
 from gms_comp.runtime import effects as fx
 

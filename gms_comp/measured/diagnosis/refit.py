@@ -23,7 +23,6 @@ import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams
-from gms_comp.measured.diagnosis.agreement import agreed
 from gms_comp.measured.diagnosis.baseline import (
     Baseline,
     Basis,
@@ -32,7 +31,6 @@ from gms_comp.measured.diagnosis.baseline import (
     held_residual,
     placed_on,
     rebased,
-    refine_slip_level,
     refit_gms_force,
 )
 from gms_comp.measured.diagnosis.basis import FreeBasis
@@ -45,15 +43,16 @@ from gms_comp.measured.diagnosis.candidates import (
     widths,
 )
 from gms_comp.measured.diagnosis.config import DiagnosisConfig, SelectionConfig
+from gms_comp.measured.diagnosis.criterion import admissible, agreed, lowers
 from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
-from gms_comp.measured.diagnosis.gain import lowers
-from gms_comp.measured.diagnosis.level_search import (
+from gms_comp.measured.diagnosis.level import (
     extended_force,
     extended_model,
     level_traded,
     level_with_shape,
+    refine_slip_level,
 )
-from gms_comp.measured.diagnosis.selection import Selection, admissible, local_search
+from gms_comp.measured.diagnosis.selection import Selection, local_search
 from gms_comp.measured.diagnosis.sensed import sensed_again
 from gms_comp.measured.policies import Leftover
 from gms_comp.runtime import effects as fx

@@ -33,11 +33,11 @@ from gms_comp.measured.diagnosis.baseline import Baseline, fit_baseline, held_re
 from gms_comp.measured.diagnosis.candidates import Scorer, describe_trials
 from gms_comp.measured.diagnosis.config import DiagnosisConfig, load_diagnosis_config
 from gms_comp.measured.diagnosis.coverage import at_bound, caveats
+from gms_comp.measured.diagnosis.criterion import lowers
 from gms_comp.measured.diagnosis.design import rms
 from gms_comp.measured.diagnosis.detection import detection_limits
-from gms_comp.measured.diagnosis.gain import lowers
 from gms_comp.measured.diagnosis.intervals import intervals
-from gms_comp.measured.diagnosis.level_search import extended_force
+from gms_comp.measured.diagnosis.level import extended_force
 from gms_comp.measured.diagnosis.phases import phase_masks, residual_by_phase
 from gms_comp.measured.diagnosis.prepare import Prepared, encoder_force_ratio, prepare
 from gms_comp.measured.diagnosis.refit import Extended, refit

@@ -31,7 +31,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gms_comp.arrays import FloatArray
-from gms_comp.measured.diagnosis.agreement import agreed, agreement
 from gms_comp.measured.diagnosis.baseline import (
     Baseline,
     FittedPart,
@@ -47,9 +46,9 @@ from gms_comp.measured.diagnosis.candidates import (
     options,
 )
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.criterion import admissible, agreed, agreement, consistent, lowers
 from gms_comp.measured.diagnosis.design import rms
-from gms_comp.measured.diagnosis.gain import lowers, lowers_locally
-from gms_comp.measured.diagnosis.level_free import (
+from gms_comp.measured.diagnosis.level import (
     FreeLevel,
     with_free_level,
 )
@@ -125,38 +124,6 @@ def local_search(
             if not improved:
                 break
     return best, best_cost
-
-
-def admissible(
-    cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: float, noise_N: float
-) -> bool:
-    """Whether ``trial`` is worth an effect (see the module docstring)."""
-    rms0, held0 = scorer.heldout_rms_N, scorer.held_residual_N
-    rules = cfg.selection
-    local = acts_locally(trial, rules)
-    if trial.heldout_rms_N >= rms0 and not local:
-        return False
-    worth = lowers(rules, held0, trial.held_residual_N)
-    if not worth and local:
-        # judged where it acts, at every event by a fit without it: an effect at a few
-        # events may have none or one held out (and the held-out RMS not lowered)
-        judge = scorer.judge  # on every sample
-        local0, local1 = judge.left_out(trial)
-        worth = lowers_locally(rules, local0, local1, noise_N)
-    apart = scorer.told_apart(trial.option)
-    if worth and apart is not None:
-        # and where the motion tells it from the effects it could stand in for
-        worth = bool(np.any(apart)) and lowers(rules, held0[apart], trial.held_residual_N[apart])
-    if not worth or not consistent(scorer, trial):
-        return False
-    if not trial.option.is_filter:
-        # an effect sized against the friction it scales (a dwell's break-away gain)
-        m = scorer.theta.size
-        effect = trial.option.effect.from_coefficients(trial.theta[m:], trial.option.shape)
-        size = trial.option.policy.relative_size(effect, scorer.parts[0].ctx)
-        if size is not None and size < rules.min_effect_fraction:
-            return False
-    return float(np.max(np.abs(scorer.change(trial)))) >= rules.min_effect_fraction * level_N
 
 
 def select(
@@ -404,14 +371,3 @@ def _consistent(scorer: Scorer, trial: Trial) -> Trial:
     """``trial`` with its shape made to agree with its fitted size (:func:`agreed`)."""
     m = scorer.theta.size
     return agreed(trial, lambda t: t.option, lambda t: t.theta[m:], scorer.score)
-
-
-def consistent(scorer: Scorer, trial: Trial) -> bool:
-    """Whether ``trial``'s shape agrees with its size within ``consistent_within``."""
-    return _agreement(scorer, trial)[1] <= scorer.rules.consistent_within
-
-
-def _agreement(scorer: Scorer, trial: Trial) -> tuple[dict[str, float], float]:
-    """The shape that agrees with ``trial``'s fitted size, and the largest factor
-    between it and ``trial``'s (1: they agree; a filter always does)."""
-    return agreement(trial.option, trial.theta[scorer.theta.size :])
