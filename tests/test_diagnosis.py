@@ -1,5 +1,5 @@
 """The diagnosis on the project's own demo traces (regression, not blind: the blind tests
-on the independent generator are tests/test_diagnosis_independent.py), on real data that
+on the independent generator are tests/test_diagnosis_rates.py), on real data that
 no catalogue entry describes (BRFD: ``unknown``), degenerate traces, and the CLI's
 contract."""
 
