@@ -13,12 +13,12 @@ from hypothesis import strategies as st
 
 from gms_comp.gms import GmsParams
 from gms_comp.measured.diagnosis.candidates import (
-    LOCAL_SHARE,
     Option,
     Trial,
     best_held_out,
     where_acting,
 )
+from gms_comp.measured.diagnosis.config import SelectionConfig
 from gms_comp.measured.diagnosis.selection import local_search
 from gms_comp.measured.policies import POLICIES, Leftover, leftover, policy
 from gms_comp.measured.policies.direction_asymmetry import DirectionAsymmetryPolicy
@@ -181,10 +181,16 @@ def test_a_stribeck_fall_acts_where_it_stops_scaling_the_gms_force() -> None:
     assert ViscousPolicy.departure(ctx, {}) is None
     fast = np.zeros(n, dtype=bool)
     fast[2000:2100] = True
-    acting = where_acting(departure[:, None])  # the rows holding 90 % of its energy
+    acting = where_acting(
+        departure[:, None], SelectionConfig()
+    )  # the rows holding 90 % of its energy
     assert not np.any(acting & ~fast) and np.count_nonzero(acting) >= 0.85 * fast.sum()
     # the bump read as the rows it acts on: most of them, not an effect at few rows
-    assert np.count_nonzero(where_acting(basis[:, None])) > 0.8 * n > LOCAL_SHARE * n
+    assert (
+        np.count_nonzero(where_acting(basis[:, None], SelectionConfig()))
+        > 0.8 * n
+        > SelectionConfig().local_share * n
+    )
 
 
 def test_a_direction_asymmetry_is_told_apart_at_speeds_reached_both_ways() -> None:
@@ -277,11 +283,11 @@ def test_a_trial_fitted_at_zero_gives_way_to_a_local_one_fitted_above_it() -> No
     local = trial(7e-3, 0.2, 1.01, 50)
     local_worse = trial(9e-3, 0.1, 1.03, 40)
     spread = trial(3e-3, 0.3, 1.02, 600)
-    assert best_held_out(m, [spread, at_zero, local_worse, local]) is local
+    assert best_held_out(m, [spread, at_zero, local_worse, local], SelectionConfig()) is local
     # none fitted above zero acts locally: the best held out
-    assert best_held_out(m, [spread, at_zero]) is at_zero
+    assert best_held_out(m, [spread, at_zero], SelectionConfig()) is at_zero
     # the best held out fitted above zero, or acting locally itself: kept
     lower = trial(5e-3, 0.1, 0.99, 600)
-    assert best_held_out(m, [lower, at_zero, local]) is lower
+    assert best_held_out(m, [lower, at_zero, local], SelectionConfig()) is lower
     local_zero = trial(8e-3, 0.0, 1.00, 30)
-    assert best_held_out(m, [local_zero, local]) is local_zero
+    assert best_held_out(m, [local_zero, local], SelectionConfig()) is local_zero

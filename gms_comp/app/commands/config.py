@@ -212,7 +212,7 @@ def _toml(value: Any) -> str:
 def _summary_line(cls: type[Any]) -> str:
     """The first docstring line of a section's dataclass, without "The [x] section"."""
     line = (cls.__doc__ or "").strip().splitlines()[0]
-    line = re.sub(r"^The ``\[\w+\]`` section[:.]?\s*", "", line).replace("``", "`")
+    line = re.sub(r"^The ``\[[\w.]+\]`` section[:.]?\s*", "", line).replace("``", "`")
     return line[:1].upper() + line[1:]
 
 

@@ -13,8 +13,7 @@ from gms_comp.config import in_range, parse_section, positive, read_toml, why
 
 @dataclass(frozen=True)
 class SplitConfig:
-    """The ``[diagnosis.split]`` section: training and held-out rows, what a usable trace
-    holds, the noise read at rest."""
+    """The ``[diagnosis.split]`` section: held-out rows, usable traces, the noise at rest."""
 
     held_starts_share: float = field(
         default=0.5,
@@ -83,8 +82,9 @@ class SplitConfig:
 
 @dataclass(frozen=True)
 class SelectionConfig:
-    """The ``[diagnosis.selection]`` section: when an extension is worth keeping (the one
-    criterion of docs/diagnosis-method.md, section 2)."""
+    """The ``[diagnosis.selection]`` section: when an extension is worth keeping.
+
+    The one criterion of docs/diagnosis-method.md, section 2."""
 
     margin: float = field(
         default=0.05,
@@ -192,8 +192,7 @@ class SelectionConfig:
 
 @dataclass(frozen=True)
 class StructureConfig:
-    """The ``[diagnosis.structure]`` section: when what the model leaves is structure no
-    catalogue effect explains (``unknown``)."""
+    """The ``[diagnosis.structure]`` section: when what is left is structure (unknown)."""
 
     unknown_ratio: float = field(
         default=1.5,
@@ -341,7 +340,9 @@ class DetectionConfig:
 
 @dataclass(frozen=True)
 class DiagnosisConfig:
-    """The ``[diagnosis]`` section of a config file."""
+    """The ``[diagnosis]`` section: what the diagnosis fits, and how finely.
+
+    Its thresholds are in the sub-sections (``[diagnosis.selection]`` ...)."""
 
     filter_cutoff_Hz: float = field(
         default=0.0,
