@@ -126,6 +126,12 @@ def why(text: str) -> dict[str, Any]:
     return {"why": text}
 
 
+def key(default: Any, check: dict[str, Any], reason: str) -> Any:
+    """A config field with its ``default``, its ``check`` (:func:`in_range`, ...) and the
+    one line of why (:func:`why`)."""
+    return dataclasses.field(default=default, metadata=check | why(reason))
+
+
 def parse_section(doc: Mapping[str, Any], path: str | Path, section: str, cls: type[T]) -> T:
     """Build dataclass ``cls`` from ``doc[section]``, validating keys, types and values.
 

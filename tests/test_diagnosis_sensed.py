@@ -18,7 +18,7 @@ from gms_comp.measured.diagnosis.basis import FreeBasis
 from gms_comp.measured.diagnosis.candidates import Option, Scorer
 from gms_comp.measured.diagnosis.config import DiagnosisConfig, SelectionConfig
 from gms_comp.measured.diagnosis.prepare import prepare
-from gms_comp.measured.diagnosis.sensed import sensed_again
+from gms_comp.measured.diagnosis.refit import sensed_again
 from gms_comp.measured.traces import Trace
 from gms_comp.runtime import effects as fx
 

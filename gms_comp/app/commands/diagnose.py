@@ -18,12 +18,12 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from gms_comp.app import emps
 from gms_comp.app.fleet import FleetJob, diagnose_fleet, format_table, report_names
 from gms_comp.app.scaleout import add_cluster_arguments, cli_tls, dask_client
 from gms_comp.config import config_hash, read_toml
 from gms_comp.errors import GmsCompError
 from gms_comp.gms import GmsParams
-from gms_comp.measured.diagnosis import emps
 from gms_comp.measured.diagnosis.phases import phase_label
 from gms_comp.measured.diagnosis.result import parameter_text
 from gms_comp.measured.diagnosis.run import Diagnosis, diagnose, load_diagnosis_config

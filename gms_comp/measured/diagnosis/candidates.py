@@ -1,10 +1,9 @@
 """Stage 3: the catalogue effects as candidate extensions of the baseline's design.
 
-An :class:`Option` is a catalogue effect with its shape fixed: extra design columns (an
-additive effect, with its coefficient bound from the catalogue) or a filter of every
-column (a sensor low-pass, a drive lag). A :class:`Scorer` holds the design of the
-effects chosen so far and scores one more option on it by held-out RMS, reusing the
-design's training Gram matrix for additive options (:class:`~.design.GramDesign`).
+An :class:`Option` is a catalogue effect with its shape fixed: extra design columns (the
+coefficients' bound from its policy) or a filter of every column. A :class:`Scorer` holds
+the design of the effects chosen so far and scores one more option on it by held-out RMS
+(its training Gram matrix reused, :class:`~.design.GramDesign`).
 """
 
 from __future__ import annotations
@@ -115,7 +114,7 @@ class Trial:
     @functools.cached_property
     def support(self) -> BoolArray:
         """The held-out rows where the option acts, worked out when first asked (of a
-        grid's trials, the best one's alone is: 644 supports took 1.9 s of a trace)."""
+        grid's trials, the best one's alone is)."""
         return self.acting()
 
 
@@ -157,10 +156,8 @@ class Scorer:
     @functools.cached_property
     def judge(self) -> Scorer:
         """The scorer on every sample of the trace (the same design), where an effect at
-        few events is judged by :meth:`left_out`; this one when the parts are every
-        sample. Picked, a dwell gain at the starts of dwell_time-248 of the independent
-        generator (3.6 kHz, 0.09 for a noise of 2.7 % of the level) dropped from z 5.7
-        to 2.1-3.0 on every 2nd sample (3.9-5.9 on the other half), and was not kept."""
+        few events is judged by :meth:`left_out` (picked, a dwell gain's z at its few
+        starts halves); this one when the parts are every sample."""
         if self._every_sample is None:
             return self
         return Scorer(self._every_sample(), self.chosen, self.rules)
@@ -235,8 +232,7 @@ class Scorer:
 
     def extra(self, opt: Option) -> list[Columns]:
         """The additive ``opt``'s columns on each part, through the chosen filters (the
-        last ``COLUMNS_KEPT`` options' kept: a shape is scored, then judged, or settled
-        and then costed, and an effect's columns may take 15 ms each)."""
+        last ``COLUMNS_KEPT`` options' kept: a shape is scored, then judged)."""
         key = (opt.effect.name, *sorted(opt.shape.items()))
         if key not in self._columns:
             if len(self._columns) >= COLUMNS_KEPT:
@@ -304,8 +300,7 @@ def fit_on(
     """Coefficients and training RMS of the design of ``chosen`` on ``parts``, whose
     base columns through ``chosen``'s filters ``base`` holds (:func:`base_gram`): the
     additive options' columns added to its Gram matrix, not the whole design built
-    again (with a filter chosen, each trial of the refit's level search filtered every
-    column 4 times: 30 s of 58 s on sensor_lowpass-124 of the independent generator)."""
+    (and filtered) again for every trial of the refit's level search."""
     filters = [o for o in chosen if o.is_filter]
     additive = [o for o in chosen if not o.is_filter]
     if not additive:
@@ -324,11 +319,8 @@ def best_held_out(m: int, trials: Sequence[Trial], rules: SelectionConfig) -> Tr
     """The trial that holds out best (``m``: the design's columns before the trial's);
     where that one's effect was fitted at zero (the design as it was) and acts on many
     rows, the best of those fitted above zero that act locally, if one does: the held-out
-    rows may hold none of its events (pair_offset_stribeck-260 of the independent
-    generator: a fall over 6.9 mm/s at two fast moves, mostly trained on, the held-out
-    rows up to 6.6 mm/s; every Stribeck speed fitted above zero held out worse, the best
-    trial was v_s 1.0 mm/s at zero on 44 % of the rows, and the fall was never judged at
-    its events)."""
+    rows may hold none of its events (a fall at a trace's two fast moves, mostly trained
+    on), and it is then judged at its events."""
     best = min(trials, key=lambda t: t.heldout_rms_N)
     if best.option.is_filter or np.any(best.theta[m:]) or acts_locally(best, rules):
         return best
@@ -360,9 +352,8 @@ def where_acting(values: FloatArray, rules: SelectionConfig) -> BoolArray:
 
 def _top_share(energy: FloatArray, share: float) -> float | None:
     """The least energy of the fewest rows (largest first) whose energies add up to
-    ``share``, from the sorted values of the rows with any (a sort of values only, of
-    those rows only: a full argsort took 4 ms a call); None where rows of that energy
-    also fall just outside (ties: which of them are in is the argsort's order)."""
+    ``share``, from the sorted values of the rows with any; None where rows of that
+    energy also fall just outside (ties: which of them are in is the argsort's order)."""
     values = np.sort(energy[energy > 0.0])[::-1]
     count = int(np.searchsorted(np.cumsum(values), share)) + 1
     if count > values.size:

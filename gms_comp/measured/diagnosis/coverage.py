@@ -1,33 +1,14 @@
 """What a trace's motion cannot tell apart: caveats printed beside the causes.
 
-A force that depends on the speed (viscous, a Stribeck fall) and one that depends on the
-direction (a direction asymmetry, an offset) are different columns of the design only
-where the trace moves at the same speeds both ways, or at several speeds one way. Where
-each direction holds one narrow band of speeds and the two bands differ, every force of
-the speed and the direction is two numbers, one per band: the baseline's sliding level
-and any one of those effects fit it alike, and only the speed-up and slow-down ramps
-tell them apart. The diagnosis still names the effect that fits best; the caveat says
-that the trace could not have told it from the others.
-
-Measured on the independent generator's seeds 101-130 (tests/indepgen.py): seed 119
-moves forward at 6.3-7.9 mm/s only and back at 1.0-1.6 mm/s only, and its hidden Stribeck
-fall was named ``direction_asymmetry`` (both fit the held-out rows within 3 %). On
-every other seed, and on EMPS, some direction holds two bands or a band wider than
-``narrow_band``, or the bands overlap.
-
-Motion can confound other pairs in ways no rule of the speeds lists (a trace that moves
-fast only in its first seconds: a force of the speed and one that changes over time), so
-the fit's own near tie is a caveat too: when the first effect was kept, another lowered
-the held-out RMS nearly as much (``near_tie``). Independent stribeck-223 moves faster
-than 1.13 mm/s only in its first 2.9 s of 29 s; its Stribeck fall (v_s 5.75 mm/s) and a
-drift over the first second both took the baseline's 0.1704 N held out to 0.1551 N, and
-the drift was named.
-
-A kept effect's shape at the bound of its search is a caveat as well: the trace could
-not place it further (``at_bound``). Independent stribeck-251 moves at 6.35 mm/s at the
-most and hides a fall with v_s 5.67 mm/s, still 28 % of its height at the top speed: v_s
-is held at half the top speed (the Stribeck bound) and the ratio fitted there is the fall
-within the trace's speeds, below the truth's.
+- ``speed_direction``: where each direction holds one narrow band of speeds and the two
+  differ, a force of the speed (viscous, stribeck) and one of the direction
+  (direction_asymmetry, offset) are the same two numbers, one per band; only the ramps
+  tell them apart, and the diagnosis names the one that fits best.
+- ``near_tie``: as the first effect was kept, another lowered the held-out error nearly as
+  much (motion can confound pairs no rule of the speeds lists).
+- ``at_bound``: a kept effect's shape ended at the bound of its search (a Stribeck speed at
+  half the top speed: the fall may go on above the trace's speeds).
+- ``drive_force``: a friction force explained by a mass may be a drive's force.
 """
 
 from __future__ import annotations

@@ -22,15 +22,11 @@ from gms_comp.measured.diagnosis.candidates import Option, Scorer, Trial, acts_l
 from gms_comp.measured.diagnosis.config import DiagnosisConfig, SelectionConfig
 from gms_comp.measured.diagnosis.design import rms
 
-# Fixed-point steps that make a shape agree with the size fitted on it, and how far
-# apart the two may be for the effect to be kept (a factor). Each step goes halfway (in
-# log) to the shape the size implies: a dwell's fitted gain falls as its windows' gain
-# rises (slope -0.8 in log near agreement), so full steps oscillate about it (three
-# left a factor 1.4); half steps converge in two. Where it does not fall smoothly (an
-# element that holds through a presliding run at one gain and slips at a slightly larger
-# one: dwell_time-117 of the independent generator, fitted 0.060 at 0.10 and 0.014 at
-# 0.11), half steps jumped across it four times; once the steps have gone both ways,
-# each bisects (in log) between the nearest gains on either side; the best fit returns.
+# Fixed-point steps that make a shape agree with the size fitted on it: each goes halfway
+# (in log) to the shape the size implies (a dwell's fitted gain falls as its windows' gain
+# rises, and full steps oscillate); once the steps have gone both ways (an element that
+# slips at one gain and not at a slightly smaller one), each bisects between the nearest
+# values on either side; the best fit returns. Converged within CONSISTENCY_CONVERGED.
 CONSISTENCY_STEPS = 8
 CONSISTENCY_CONVERGED = 1.1
 
@@ -72,11 +68,8 @@ def lowers_locally(
     (``current``, ``new``: the residuals at those rows without and with it, every event
     by a fit that left it out): significant (``local_significance_t``), and lowering
     what those rows hold above the force's noise ``noise_N`` (the RMS with the noise's
-    share taken out) by ``local_margin``. The RMS itself, noise included, could not show
-    a gain that stands far out: dwell_time-240 of the independent generator (a 13 %
-    break-away gain after the median standstill, noise 1.4 % of the level) dropped the
-    RMS at its starts 6.5 % only (0.1489 -> 0.1392 N, noise 0.1323 N) with z 7.7; above
-    the noise, 0.068 -> 0.043 N."""
+    share taken out) by ``local_margin`` (the RMS itself, noise included, hides a gain
+    that stands far out of the noise at a few starts)."""
     if current.size == 0:
         return False
     above0, above1 = (np.sqrt(max(rms(r) ** 2 - noise_N**2, 0.0)) for r in (current, new))

@@ -1,16 +1,12 @@
-"""What ``none`` rules out: for each catalogue effect, the smallest size this trace would
-have revealed (docs/diagnosis-method.md, section 7).
+"""What ``none`` rules out: each catalogue effect's smallest size this trace would reveal
+(docs/diagnosis-method.md, section 7).
 
-On the final model less that effect, at a few shapes of its grid: an effect of size s
-added to the trace adds s x to the force (x its column for a unit size); the model without
-it, fitted on the training rows to the force with it, leaves what it cannot absorb of s x
-on the held-out rows, and with it in the design what it leaves now. The limit is the
-least s for which the selection's criterion keeps it (by prediction, or where it acts
-with its events left out, and by size), found by bisection in log; for a filter, the
-largest filter of the fitted model force the criterion keeps. The limit stated is the
-one at the shape where it is the median of the shapes'; the range over them goes with
-it. A limit is linear algebra on the final design: the competition between effects in
-the selection and a level that would move to carry part of an effect are not in it.
+On the final model less that effect, at a few shapes of its grid: an effect of size s adds
+s x to the force (x its column at unit size); the model without it, fitted to the force
+with it, leaves what it cannot absorb of s x on the held-out rows, and the model with it
+what it leaves now. The limit is the least s the criterion keeps (by prediction, or at its
+events each left out, and by size), by bisection in log; for a filter, the smallest filter
+of the model force it keeps. The limit stated is at the shape where it is the median.
 """
 
 from __future__ import annotations

@@ -1,19 +1,14 @@
-"""How sure: a 95 % interval for every parameter of every kept effect (docs/diagnosis-method.md,
-section 6).
+"""How sure: a 95 % interval for every parameter of every kept effect
+(docs/diagnosis-method.md, section 6).
 
-The final model is linearised about its fit (Gauss-Newton): its design columns (the GMS
-elements, the kept effects' coefficients, through the kept filters) and, for each
-nonlinear parameter, the model's change per step of it (the slip level C_v and v_t of a
-free baseline, every kept effect's shape in log). On that linear system over the training
-rows, a delete-a-group jackknife (each of ``jackknife_blocks`` contiguous blocks left out
-in turn) gives every parameter's spread: the noise, its correlation in time, the trades
-between parameters (a Stribeck ratio with its speed and with the slip level) and the
-misfit where it changes along the trace. What stays the same all along the trace (a model
-form the catalogue does not quite have) it cannot see: each interval also holds the most
-the misfit left above the noise could move the parameter were it spread over
-``misfit_patterns`` independent patterns. Intervals are clipped at the search bounds of a
-shape and at the physical bound of the coefficients; reaching either is said
-(``at_bound``).
+The final model linearised about its fit: its design columns and, for each nonlinear
+parameter (a free baseline's C_v and v_t, every kept shape in log), the model's change per
+step. A delete-a-group jackknife over ``jackknife_blocks`` contiguous blocks of the
+training rows gives each parameter's spread (the noise, its correlation in time, the
+trades between parameters, the misfit where it changes along the trace); each interval
+also holds the most the misfit left above the noise could move the parameter, spread over
+``misfit_patterns`` patterns. Clipped at a shape's search bounds and at the coefficients'
+physical bound; reaching either is said (``at_bound``).
 """
 
 from __future__ import annotations

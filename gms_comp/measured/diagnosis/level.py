@@ -1,19 +1,13 @@
-"""The slip level searched with the effects: where an effect trades against the level the
-blind baseline fitted alone (:mod:`.slip_level` is the level's parameters and its steps).
+"""The slip level searched with the effects (:mod:`.slip_level` is the level and its steps).
 
 - In the selection's first rounds, an effect whose policy says so (``free_level``: a
-  Stribeck fall) is also scored on baselines refitted on a grid of levels above the
-  baseline's (:func:`with_free_level`): the blind GMS fits best at a low C_v that carries
-  the fall, where a fall's column cannot raise the level at low speed.
-- In the refit, the level (C_v, v_t) is stepped again with the kept effects present
-  (:func:`refine_slip_level`), and searched together with the one shape that trades
-  against it (``Policy.level_shape``: a Stribeck speed, else a drift's time constant) by
-  a bounded Nelder-Mead from the best of a small grid, on each of the level's tails
-  (:func:`level_with_shape`): coordinate steps on the level, then on the shape, crawl
-  along the ridge between them and stall. Each tail's search ends where its training RMS
-  is least; the tail is then chosen by the held-out RMS of the extended model as the
-  compensator runs it (the elements fit part of the noise, and the training RMS favours
-  the tail whose misfit they carry).
+  Stribeck fall, which drags the blind GMS's level down) is also scored on baselines
+  refitted on a grid of levels above the baseline's (:func:`with_free_level`).
+- In the refit, the level is stepped again with the kept effects present
+  (:func:`refine_slip_level`), then searched together with the one shape that trades
+  against it (``Policy.level_shape``) by a bounded Nelder-Mead from the best of a small
+  grid, on each of the level's tails, the tail taken by the held-out RMS of the extended
+  model as the compensator runs it (:func:`level_with_shape`).
 """
 
 from __future__ import annotations

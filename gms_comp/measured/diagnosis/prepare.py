@@ -42,17 +42,13 @@ class Part:
     train: BoolArray
     held: BoolArray
     # The path's reversals, rests and distances are the measured position's, as the
-    # compensator sees it: the kinematics' zero-phase low-pass rings where a fast move
-    # stops short (on reversal_transient-132 of the independent generator, a stop from
-    # 74 mm/s overshot its rest by 1.2 nm, 0.76 of the 1.6 nm encoder's step, and that
-    # retreat was a reversal: the transient's 2.8 N flipped at the stop and again at the
-    # start after it, which the truth does not have; the residual read as a tone).
+    # compensator sees it (the kinematics' zero-phase low-pass rings where a fast move
+    # stops short, and a ring of a count's fraction is a false reversal).
     path_position_m: FloatArray
 
     def picked(self, every: int) -> Part:
         """Every ``every``-th row of this part, its kinematics the full rate's picked (not
-        differenced again at the lower rate: inertia-244 of the independent generator,
-        1.3 kHz, fitted on every 2nd sample, had its mass 13 % high; picked, 0.4 %)."""
+        differenced again at the lower rate: a mass came out 13 % high so)."""
         rows = slice(None, None, every)
         return Part(self.kin.slice(0, None, every), self.force_N[rows], self.train[rows],
                     self.held[rows], self.path_position_m[rows])  # fmt: skip
@@ -95,19 +91,15 @@ class Prepared:
     def context(self, part: Part, gms_force_N: FloatArray) -> fx.Context:
         """The path context of ``part`` with the GMS force ``gms_force_N``: its
         standstill speed, deadband and rest band, traced on its measured position, its
-        reversals dated from their turning points (a recorded trace knows them). Dated
-        where the retreat passed the deadband, as a streaming compensator dates them,
-        reversal_transient-135 of the independent generator (a 42 nm encoder, slow
-        vertices) had A 37.5 % off; in hindsight 5.7 %. Over its seeds 121-150 nothing
-        else changed: the 30 reversal_transient traces' A error went from 4.4 % median,
-        37.5 % worst to 3.3 % and 20 %; EMPS 2.27 % train, 2.96 % cross-test as before."""
+        reversals dated from their turning points (a recorded trace knows them; dated
+        where the retreat passed the deadband, as a streaming compensator dates them, a
+        reversal transient's amplitude came out far off at slow vertices)."""
         index = next(i for i, p in enumerate(self.parts) if p is part)
         return dataclasses.replace(self._paths[index], gms_force_N=np.asarray(gms_force_N, float))
 
     @functools.cached_property
     def _paths(self) -> list[fx.Context]:
-        """Each part's path context (:meth:`context` without a GMS force), traced once:
-        every baseline fitted traced it again (33 times, 3 of 47 s of a trace)."""
+        """Each part's path context (:meth:`context` without a GMS force), traced once."""
         settings = (self.standstill_speed_m_s, self.reversal_deadband_m, self.rest_band_m)
         return [
             fx.Context.of(
@@ -120,8 +112,7 @@ class Prepared:
 def force_noise(force_N: FloatArray) -> float:
     """The force's white noise (standard deviation), from the median absolute deviation
     of its second differences (sqrt 6 x the noise; a friction force's own second
-    difference is small but at few samples). Within 1 % of the truth's on 20
-    independent traces."""
+    difference is small but at few samples)."""
     d2 = np.diff(force_N, 2)
     if d2.size == 0:
         return 0.0
@@ -173,14 +164,12 @@ def prepare(
     trace: Trace, force_kind: ForceKind, validation: Trace | None, cfg: DiagnosisConfig,
     dequantise: bool = False, held: BoolArray | None = None,
 ) -> Prepared:  # fmt: skip
-    """The parts of ``trace`` (held-out: every third of ``cfg.n_blocks`` blocks, so both
-    parts hold every kind of motion, :func:`held_third`) or of ``trace`` and
-    ``validation`` (held out whole); with ``dequantise``, their kinematics from the
-    encoder's counts read as motion (:func:`.motion.dequantised`); ``held``: the held-out
-    rows of ``trace`` (every sample) as another reading chose them (the two readings are
-    then compared on the same rows). A trace sampled at twice ``cfg.fit_rate_Hz`` or
-    faster has its parts picked (:func:`fitted_every`, :meth:`Part.picked`), the parts
-    of every sample kept as :attr:`Prepared.every_sample`.
+    """The parts of ``trace`` (held out: every third of ``cfg.n_blocks`` blocks,
+    :func:`held_third`) or of ``trace`` and ``validation`` (held out whole); with
+    ``dequantise``, the kinematics from the encoder's counts read as motion; ``held``: the
+    held-out rows another reading chose (the two are then compared on the same rows). A
+    trace sampled at twice ``cfg.fit_rate_Hz`` or faster has its parts picked, those of
+    every sample kept as :attr:`Prepared.every_sample`.
 
     Raises
     ------
@@ -321,10 +310,8 @@ def acceleration_cutoff(trace: Trace, resolution_m: float, rules: SplitConfig) -
     ``DRIVE_CUTOFF_HZ``); the Nyquist frequency if the encoder is fine enough.
 
     A position step q read every dt gives a second difference of RMS q / sqrt(2) / dt^2,
-    its spectrum rising as f^4, so the noise below a cut-off f_c falls as
-    (f_c / f_Nyquist)^2.5. A mass fitted on a noisy acceleration carries the noise and
-    comes out low; filtered too low, the acceleration of jerk-limited moves is smoothed
-    and the mass comes out high (10 % at 100 Hz on a 1 kHz trace)."""
+    its spectrum rising as f^4: the noise below a cut-off f_c falls as (f_c / f_N)^2.5.
+    Too noisy, a mass comes out low; filtered too low, high."""
     dt = trace.sample_time_s
     nyquist = 0.5 / dt
     noise = resolution_m / np.sqrt(2.0) / dt**2

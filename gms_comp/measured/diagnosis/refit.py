@@ -1,21 +1,20 @@
-"""Stage 5: the kept effects refitted jointly, and the extended model run as the
-compensator runs it.
+"""Stage 5: the kept effects refitted jointly, the backward pass, and the extended model run
+as the compensator runs it.
 
-The effects that scale the friction (stribeck, dwell_time, drift) are columns of the GMS
-force; it is updated to the jointly fitted GMS and the fit repeated (``JOINT_REFITS``
-times), so that they scale the force the extended model will run with. The shape of every
-additive effect is searched again each time by training RMS: the selection chose them
-by held-out RMS with the baseline's GMS force, where a dwell's gain and time constant
-trade off (tau came out 15-30 % high on simulated traces), and a reversal transient's length
-on elements that had taken part of it. A kept effect's ``Policy.level_shape`` is then
-searched together with the slip level it trades against (:mod:`.level_search`); the free
-baseline is placed again on the force less the effects whose policy says the blind
-elements take part of them (``Policy.elements_take_part``).
+The effects that scale the friction are columns of the GMS force: it is updated to the
+joint fit and the fit repeated (``JOINT_REFITS`` times), every additive effect's shape
+searched again by training RMS each time. The free baseline is placed again on the force
+less the effects its elements took part of (``Policy.elements_take_part``) and fitted
+through a kept filter (:mod:`.sensed`); the slip level is searched with the one shape that
+trades against it (:mod:`.level`). Backward pass: an effect no longer worth keeping on the
+joint design is dropped, one the joint fit leaves under the size floor too, and an effect
+that trades with the level is judged against the model refitted without it.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -28,6 +27,7 @@ from gms_comp.measured.diagnosis.baseline import (
     Basis,
     FittedPart,
     fit_baseline,
+    fitted_through,
     held_residual,
     placed_on,
     rebased,
@@ -40,6 +40,7 @@ from gms_comp.measured.diagnosis.candidates import (
     base_gram,
     design,
     fit_on,
+    through,
     widths,
 )
 from gms_comp.measured.diagnosis.config import DiagnosisConfig, SelectionConfig
@@ -48,12 +49,10 @@ from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
 from gms_comp.measured.diagnosis.level import (
     extended_force,
     extended_model,
-    level_traded,
     level_with_shape,
     refine_slip_level,
 )
 from gms_comp.measured.diagnosis.selection import Selection, local_search
-from gms_comp.measured.diagnosis.sensed import sensed_again
 from gms_comp.measured.policies import Leftover
 from gms_comp.runtime import effects as fx
 
@@ -91,60 +90,43 @@ class Extended:
 
 
 def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
-    """:func:`refit_kept`; where a Stribeck kept with the slip level free moved the level,
-    it stays only if that beats, as an effect is kept (by the margin, or the small
-    margin and significant), the model refitted without it from the level the selection
-    started from, whose refit searches the level (and a drift's time constant with it)
-    further than the selection's grid: on drift-122 of the independent generator (no
-    Stribeck), a Stribeck at C_v 1.395 beat the drift's design on the grid's levels
-    (0.683 against 0.734 N held out) and was kept second; refitted, 0.6483 N with it
-    against 0.6455 N without. A Stribeck kept after another effect at the baseline's
-    level is judged the same way: it may carry what the level and the first effect's
-    shape, searched together in the refit, carry better (six traces of the independent
-    seeds 111-130 without a Stribeck, drift-114/-120 among them, kept one second or
-    third; none of them does now, and pair_offset_stribeck-121/-123 keep theirs).
-    The model without it has its level searched as far as the one with it (on both
-    tails, from a grid), with no shape to search beside it: on reversal_transient-271
-    (C_v 1.056; a 0.45 N transient over 0.27 mm on a 3.1 N level, noise 0.030 N) the
-    level's coordinate steps left the transient alone at 0.0355 N held out and a 5 %
-    Stribeck at 3.1 mm/s was kept beside it (0.0345 N); searched, C_v 1.055 and 0.0345 N.
-    A drift kept beside another effect is judged the same way (:func:`_judged`)."""
+    """:func:`refit_kept`, then the backward pass for the effects that trade against the
+    slip level (``Policy.level_shape``, ``free_level``): each such effect kept beside
+    another, or kept with the level free, the last kept first, stays only if the model
+    with it beats, by the criterion, the model refitted without it from the level the
+    selection started from, whose level is searched as far as the one with it (on both
+    tails, from a grid): the level, searched further than the selection's grid, may carry
+    what the effect carried (a Stribeck fall kept at a grid's level beside a drift; a
+    drift beside a reversal transient, standing in for the level's rise). The others
+    were judged on the joint design already (:func:`refit_kept`'s backward pass)."""
     extended = refit_kept(selection, cfg)
-    judged = _judged(selection)
-    if judged is None:
-        return extended
-    start = selection.level_from or selection.baseline
-    rest = [
-        (o, h) for o, h in zip(selection.chosen, selection.heldout_rms_N, strict=True)
-        if o is not judged
-    ]  # fmt: skip
-    # from the same baseline, the elements re-placed for the first refit serve the second
-    placed = extended.placed if start is selection.baseline else None
-    without = refit_kept(
-        Selection(start, tuple(o for o, _ in rest), tuple(h for _, h in rest),
-                  selection.last_round),
-        cfg, placed, alone=True,
-    )  # fmt: skip
-    worth = lowers(cfg.selection, without.held_residual_N, extended.held_residual_N)
-    return extended if worth else without
+    for opt in reversed(selection.chosen):
+        if opt not in selection.chosen or not _judged(selection, opt):
+            continue
+        start = selection.level_from or selection.baseline
+        rest = [
+            (o, h) for o, h in zip(selection.chosen, selection.heldout_rms_N, strict=True)
+            if o is not opt
+        ]  # fmt: skip
+        # from the same baseline, the elements re-placed for the first refit serve this one
+        placed = extended.placed if start is selection.baseline else None
+        fewer = Selection(
+            start, tuple(o for o, _ in rest), tuple(h for _, h in rest), selection.last_round
+        )
+        without = refit_kept(fewer, cfg, placed, alone=True)
+        if not lowers(cfg.selection, without.held_residual_N, extended.held_residual_N):
+            selection, extended = fewer, without
+    return extended
 
 
-def _judged(selection: Selection) -> Option | None:
-    """The kept effect :func:`refit` judges against the model without it: one whose
-    policy scores it with the level free (``free_level``: a Stribeck), kept so or after
-    another effect; else, beside another effect, the one whose shape the refit searches
-    with the level (:func:`.level_search.level_traded`: a Stribeck, else a drift). A
-    drift kept beside a reversal transient stood in for the
-    level's rise: on reversal_transient-251 of the independent generator (an 11 N
-    transient over 36 um on a 35 N level, C_v 1.256; no drift) a 3 % drift over 6.3 s
-    was chosen first and kept, 0.7126 N held out (noise 0.638 N); the transient alone,
-    its level searched, 0.7082 N at C_v 1.252."""
-    chosen = selection.chosen
-    free = [k for k, o in enumerate(chosen) if o.policy.free_level]
-    if free and (selection.level_from is not None or free[0] > 0):
-        return chosen[free[0]]
-    at = level_traded(chosen)
-    return None if len(chosen) < 2 or at is None else chosen[at]
+def _judged(selection: Selection, opt: Option) -> bool:
+    """Whether :func:`refit` judges ``opt`` against the model without it: its policy
+    scores it with the level free (``free_level``) and it was kept so or beside another
+    effect, or its shape trades with the level (``level_shape``) and it was kept beside
+    another."""
+    rules, beside = opt.policy, len(selection.chosen) > 1
+    free = rules.free_level and (selection.level_from is not None or beside)
+    return free or (rules.level_shape is not None and beside)
 
 
 def refit_kept(
@@ -181,11 +163,7 @@ def refit_kept(
         history = [h for o, h in zip(chosen, history, strict=True) if o in kept]
         chosen = kept
         theta = GramDesign(design(parts, chosen)).fit()
-        # what a dropped effect carried goes back to the level it was searched with (on
-        # pair_drift_offset-251 of the independent generator a viscous term under the
-        # floor, 0.68 N on a 41 N level, carried the rational onset's slow rise: dropped,
-        # the drift and offset held out 0.653 N for 0.626 N, noise 0.622 N, and a
-        # Stribeck fall of 3 % at 0.06 mm/s beat them)
+        # what a dropped effect carried goes back to the level it was searched with
         basis, parts, chosen, theta = _with_level(baseline, basis, parts, chosen, theta, alone)
         forces = _added_forces(parts, chosen, theta)
     if len(chosen) > 1:
@@ -239,12 +217,10 @@ def _placed_again(
     baseline: Baseline, chosen: list[Option], cfg: DiagnosisConfig, placed: Baseline | None
 ) -> tuple[Baseline, Baseline | None]:
     """The free baseline fitted again on the force less the fitted forces of the kept
-    effects the blind elements took part of (``Policy.elements_take_part``) (its
-    elements, knots and slip level), if the kept effects
-    then fit the held-out rows better, else ``baseline``; and the one fitted again.
-    ``placed``: one already fitted again on ``baseline`` (by the refit with a Stribeck
-    more, whose fitted forces differ a little), used instead of a new fit (7 of 68 s on
-    reversal_transient-246 of the independent generator)."""
+    effects the blind elements took part of (``Policy.elements_take_part``: its elements,
+    knots and slip level), if the kept effects then fit the held-out rows better, else
+    ``baseline``; and the one fitted again. ``placed``: one already fitted again on
+    ``baseline`` (by the refit with one effect more), used instead of a new fit."""
     again = any(o.policy.elements_take_part for o in chosen)
     if not again or not isinstance(baseline.basis, FreeBasis):
         return baseline, None
@@ -317,9 +293,7 @@ def _floored(chosen: list[Option], forces: list[FloatArray], floor_N: float) -> 
     """The kept effects whose jointly fitted force (``forces``, :func:`_added_forces`)
     reaches ``floor_N`` somewhere (the selection's floor, ``min_effect_fraction`` of the
     sliding force): an effect kept on the baseline's force may be carried by the others
-    once all are fitted together, and its fitted size go to its bound (a reversal
-    transient of A = 0 N stayed named on pair_drift_offset-119 of the independent
-    generator, its counts read as motion)."""
+    once all are fitted together, and its fitted size go to its bound."""
     return [o for o, f in zip(chosen, forces, strict=True) if float(np.max(np.abs(f))) >= floor_N]
 
 
@@ -395,3 +369,20 @@ def _refine_shape(
         first, lambda t: settled(t)[2], first_cost, bounds, rules.set_by_size, steps
     )
     return settled(best[0])[0]
+
+
+def sensed_again(baseline: Baseline, chosen: list[Option], rules: SelectionConfig) -> Baseline:
+    """``baseline`` with its elements fitted again through ``chosen``'s filters
+    (:func:`~.baseline.fitted_through`) if ``chosen`` then fits the held-out rows better;
+    else ``baseline`` (also without a filter kept, or with a table baseline)."""
+    filters = [o for o in chosen if o.is_filter]
+    if not filters or not isinstance(baseline.basis, FreeBasis):
+        return baseline
+    sensed = functools.partial(through, filters)
+    trial = fitted_through(baseline, sensed, [o.effect.name for o in filters])
+    if (
+        Scorer(trial.parts, chosen, rules).heldout_rms_N
+        < Scorer(baseline.parts, chosen, rules).heldout_rms_N
+    ):
+        return trial
+    return baseline

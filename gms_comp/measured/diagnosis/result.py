@@ -19,14 +19,9 @@ from gms_comp.runtime import effects as fx
 
 @dataclass(frozen=True)
 class Diagnosis:
-    """Result of :func:`~gms_comp.measured.diagnosis.run.diagnose`; :meth:`to_json` gives the
-    spec's keys.
-
-    ``effect`` is the first kept effect's name, ``none`` when nothing was kept and the
-    residual is noise-like, or ``unknown`` when the residual left by the best extension
-    still has structure (``structure`` says where; ``ranked`` then holds the partial
-    candidates).
-    """
+    """Result of :func:`~gms_comp.measured.diagnosis.run.diagnose` (:meth:`to_json`: the
+    spec's keys): ``effect`` the first kept effect's name, ``none``, or ``unknown`` (the
+    residual still has structure; ``ranked`` then holds the partial candidates)."""
 
     effect: str
     ranked: tuple[Ranked, ...]

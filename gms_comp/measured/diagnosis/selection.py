@@ -1,24 +1,14 @@
-"""Stage 4: forward selection of catalogue effects on held-out samples.
+"""Stage 4: forward selection of catalogue effects by the criterion (:mod:`.criterion`).
 
-Each round scores every remaining effect over its shape grid on the design of the
-effects kept so far, refines the best shape of each effect that helps by a bounded local
-search, and keeps the admissible effect with the lowest held-out RMS. An effect is
-admissible if it lowers the held-out RMS by more than ``margin`` (relative), or by a
-smaller but significant step (t statistic over held-out chunks); an effect that acts on
-few samples (a dwell gain at break-aways; a Stribeck fall on a trace with few fast moves,
-where it departs from the GMS force: ``Effect.departure``) is also judged where it acts,
-at every event by a fit that did not see it (the held-out rows may hold none of its
-events); and in any case it must change the model force somewhere by
-``min_effect_fraction`` of the sliding force (on clean traces tiny stray terms always
-lower the held-out error a little). An effect
-that names the rows where the motion tells it from others (``Effect.told_apart``: a
-direction asymmetry, at speeds the trace reaches both ways) must lower it there too. In the
-first ``free_level_rounds`` rounds Stribeck is also scored with the baseline's slip
-level free (:mod:`.level_free`); where that wins, the selection goes on from that level.
-After each effect kept, the GMS force the effects scale is the one fitted beside it.
-Every search here is bounded: rounds by ``max_effects``, grids by the catalogue, local search
-by ``REFINE_STEPS`` (or an effect's own ``shape_steps``) x ``MAX_PASSES`` inside each
-effect's shape bounds.
+Each round scores every remaining effect over its policy's shape grid on the design of the
+effects kept so far, refines the best shape of each by a bounded local search (an effect
+acting at few events: from all of them, its shape agreeing with its size), and keeps the
+one worth keeping with the lowest held-out RMS. In the first ``free_level_rounds`` rounds
+an effect whose policy says so (``free_level``) is also scored with the baseline's slip
+level free (:mod:`.level`); where that wins, the selection goes on from that level. After
+each effect kept, the GMS force the effects scale is the one fitted beside it. Every search
+is bounded: rounds by ``max_effects``, grids by the policies, local search by
+``REFINE_STEPS`` (or the policy's ``shape_steps``) x ``MAX_PASSES`` inside its bounds.
 """
 
 from __future__ import annotations
@@ -61,17 +51,11 @@ REFINE_STEPS = (1.3, 1.08)
 MAX_PASSES = 4
 # An effect acting locally has its shape from the LOCAL_STARTS best of its grid.
 LOCAL_STARTS = 3
-# Shape keys the local search does not step (Policy.discrete: a filter's order, a dwell
-# gain's form). An effect judged where it acts searches each value's shape (a form worth
-# an effect first,
-# then by held-out RMS). Else, where the grid's best lowers the held-out RMS by the
-# margin, the best grid trial of each value is refined: a grid 1.6x apart in cut-off
-# picked a filter's order by which grid point fell nearer its delay (12 of 30 independent
-# traces one order off, the cut-off 17-56 % off); refined, each order's cut-off decides
-# (seeds 122, 128). Only the orders whose grid best held out within 1.25x of the best
-# were refined once: where the filter is large the true order's grid best was further
-# off (sensor_lowpass-188: baseline 4.58 N, grid bests 0.77 N for order 4 and 1.07 N for
-# order 3; refined, 0.63 and 0.55 N): 7 of 70 traces one order off.
+# A policy's discrete keys (a filter's order, a dwell gain's form) are not stepped: an
+# effect judged where it acts searches each value's shape (one worth an effect first,
+# then by held-out RMS); else, where the grid's best lowers the held-out RMS by the
+# margin, each value's best grid trial is refined (a coarse grid picks a filter's order
+# by which grid point falls nearer its delay; refined, each order's cut-off decides).
 
 Progress = Callable[[str], None]
 
@@ -219,11 +203,8 @@ def _gms_from(
     """``baseline``'s parts with the GMS force (and elements) of the coefficients
     ``theta`` (a joint fit with the effects kept; None: the baseline's own), and the
     same along every sample (``placed``, its GMS force refitted when first asked).
-    The effects that scale the GMS force scale the one fitted beside the kept effects:
-    on pair_offset_stribeck-259 of the independent generator the baseline fitted alone
-    absorbed an offset of 30 % of the level into its limits (its force 17.8 N off where
-    fitted beside the offset), and a Stribeck fall on it held out 0.988 N against the
-    0.958 N of one on the force fitted beside the offset (noise 0.953 N)."""
+    The effects that scale the GMS force scale the one fitted beside the kept effects (the
+    baseline fitted alone takes part of a large offset into its limits)."""
     basis = baseline.basis
 
     def gms(parts: tuple[FittedPart, ...]) -> tuple[FittedPart, ...]:
@@ -237,16 +218,11 @@ def _free_level(
     cfg: DiagnosisConfig, effect: type[Effect], baseline: Baseline, scorer: Scorer,
     rivals: Sequence[Trial], level_N: float, fitted: dict[tuple[float, float], Baseline],
 ) -> FreeLevel | None:  # fmt: skip
-    """Stribeck with the slip level free (:mod:`.level_free`), shape refined, if it is
-    admissible on its level and lowers, as an effect is kept (:func:`~.gain.lowers`), the
-    held-out residual of the best of the design so far and every other effect's best
-    trial of the round, both also on Stribeck's level and where the design without
-    Stribeck fits best on the grid (by 5 % of the RMS before: near the noise, on
-    pair_offset_stribeck-259, 0.958 N against a direction asymmetry's 0.977 N, noise
-    0.953 N, was not enough). A level's gain alone is not Stribeck's: on
-    position_ripple-117 of the independent generator (no Stribeck), round 2 went from
-    0.502 N held out to 0.402 N at C_v 1.1 with Stribeck and to 0.402 N without; judged
-    against the round's best only, Stribeck was kept and, carrying the level, ranked first."""
+    """``effect`` with the slip level free (:mod:`.level`), shape refined, if it is worth
+    keeping on its level and lowers, by the criterion (:func:`~.criterion.lowers`), the
+    held-out residual of the design so far and of every other effect's best trial of the
+    round, both also on its level and where the design without it fits best on the grid:
+    a level's gain alone is not the effect's."""
     free = with_free_level(effect, baseline, scorer, fitted)
     if free is None or free.trial.heldout_rms_N >= free.scorer.heldout_rms_N:
         return None
@@ -335,13 +311,9 @@ def _polish(
     """The best of ``trials`` by :meth:`~.candidates.Scorer.whole_rms` among those whose
     shape agrees with their size within ``consistent_within`` (the first when none
     does), then a bounded local search of every key, the size-set ones too, over shapes
-    that stay within that agreement. Settling walks each shape to exact agreement, and
-    where the effect's column is attenuated against the truth (a dwell gain's fitted
-    coefficient below the gain its windows are computed at) it walks down the gain:
-    on dwell_time-130 of the independent generator the agreed ridge's best dropped the
-    RMS at the starts by 10 %, a shape off it within the factor (the truth's own) by
-    19 %. For an effect whose size sets no key, this is the local search again from
-    the best consistent grid trial."""
+    that stay within that agreement (settling each shape to exact agreement walks down
+    the gain where the column is attenuated against the truth's). For an effect whose
+    size sets no key, this is the local search again from the best consistent trial."""
     scored: dict[tuple[tuple[str, float], ...], Trial] = {}
 
     def fitted(opt: Option) -> Trial:

@@ -82,9 +82,8 @@ def slip_level_vertex(
     best: tuple[float, Level], cost: Callable[[Level], float], d_cv: float
 ) -> tuple[float, Level]:
     """``best`` or the level with C_v at the vertex of the parabola through the squared
-    costs at C_v +- ``d_cv`` (within the step), whichever costs less. The cost is sharp in
-    C_v: on an independent trace 1.08, 1.09, 1.10 cost 0.0288, 0.0268, 0.0277 N, and the
-    steps of 0.02 stopped at 1.10 (truth 1.086)."""
+    costs at C_v +- ``d_cv`` (within the step), whichever costs less (the cost is sharp in
+    C_v: the steps stop a fraction of a step from its minimum)."""
     cv, vt, ex, tail, law = best[1]
     lo, hi = SLIP_LEVEL_RANGE
     if not lo + d_cv <= cv <= hi - d_cv:

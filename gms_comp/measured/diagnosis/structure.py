@@ -1,19 +1,14 @@
-"""Stage 6a: is what the extended model leaves noise, or structure no effect explains?
+"""Stage 6: is what the extended model leaves noise, or structure no effect explains?
 
 The held-out residual is averaged over bins of each quantity a friction effect could
-depend on: motion phase, velocity, position and direction, time; and searched for a
-tone. The RMS of those bin means (less what the noise alone gives them) is the part of
-the residual that depends on the quantity. If the largest such part stands well above
-the noise and is a noticeable share of the sliding force (or the residual as a whole
-stands far above the noise, no one quantity holding it), the diagnosis is ``unknown``:
-the catalogue's best extension does not explain the trace, and the findings say in
-words where the residual lives. A spot (a fraction of a mm where the level changes) is
-searched on every sample, fitted and held out alike: the model's few parameters cannot
-bend to a fraction of a mm, and a bump crossed a few times may fall outside the held-out
-blocks; friction acts both ways, so a spot must show with the other sign where the same
-bin is travelled the other way (or, crossed one way only, in the next bin too). The noise
-is the one the diagnosis read from the force (``Prepared.noise_N``): white or coloured,
-a sensor's low-passed noise is not structure. Thresholds: ``[diagnosis.structure]``.
+depend on (motion phase, velocity, position and direction, time) and searched for a tone;
+the RMS of the bin means, less the noise's share, is what depends on the quantity. Where
+the largest stands well above the noise and is a share of the sliding force worth
+compensating (or the residual as a whole stands far above the noise), the answer is
+``unknown`` and the findings say where the residual lives. A spot (a fraction of a mm
+where the level changes) is searched on every sample, and must show with the other sign
+where the same bin is travelled the other way (friction acts both ways). The noise is the
+one the diagnosis read from the force (``Prepared.noise_N``, white or coloured).
 """
 
 from __future__ import annotations
