@@ -24,7 +24,7 @@ from scipy import stats
 from gms_comp.arrays import FloatArray
 from gms_comp.measured.diagnosis.baseline import FittedPart, rebased, refit_gms_force
 from gms_comp.measured.diagnosis.basis import FreeBasis
-from gms_comp.measured.diagnosis.candidates import Option, design, widths
+from gms_comp.measured.diagnosis.candidates import Option, design, through, widths
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.design import Columns, GramDesign, PartDesign
 from gms_comp.measured.diagnosis.refit import Extended
@@ -111,7 +111,27 @@ def _level_columns(extended: Extended, model: Sequence[FloatArray]) -> list[Colu
         parts = refit_gms_force(rebased(extended.baseline, level), extended.theta, level)
         changed = [d.columns.values @ extended.theta for d in design(parts, extended.chosen)]
         out.append((None, key, [(a - b) / step for a, b in zip(changed, model, strict=True)]))
-    return out
+    return out + _knot_columns(extended)
+
+
+def _knot_columns(extended: Extended) -> list[Column]:
+    """The model's change per step (in log) of each kept element's break-away: the
+    elements' shape trades with the effects at the reversals (a filter's lag, a
+    transient), all of them stepped in one pass of the GMS kernel."""
+    basis = extended.basis
+    assert isinstance(basis, FreeBasis)
+    limits = extended.theta[: basis.breakaway_m.size]
+    active = np.flatnonzero(limits > 0.0)
+    if active.size == 0:
+        return []
+    moved = dataclasses.replace(basis, breakaway_m=basis.breakaway_m[active] * math.exp(LOG_STEP))
+    filters = [o for o in extended.chosen if o.is_filter]
+    columns = []
+    for fp in extended.parts:
+        dt = fp.ctx.sample_time_s
+        change = (moved.columns(fp.part.kin) - fp.phi[:, active]) * limits[active] / LOG_STEP
+        columns.append(through(filters, change, dt))
+    return [(None, f"breakaway_{i}", [c[:, j] for c in columns]) for j, i in enumerate(active)]
 
 
 def _shape_columns(
