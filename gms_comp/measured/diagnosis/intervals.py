@@ -7,8 +7,9 @@ step. A delete-a-group jackknife over ``jackknife_blocks`` contiguous blocks of 
 training rows gives each parameter's spread (the noise, its correlation in time, the
 trades between parameters, the misfit where it changes along the trace); each interval
 also holds the most the misfit left above the noise could move the parameter, spread over
-``misfit_patterns`` patterns. Clipped at a shape's search bounds and at the coefficients'
-physical bound; reaching either is said (``at_bound``).
+``misfit_patterns`` patterns, and at least ``model_form_share`` of the parameter's size
+(the misfit the fit absorbs never shows). Clipped at a shape's search bounds and at the
+coefficients' physical bound; reaching either is said (``at_bound``).
 """
 
 from __future__ import annotations
@@ -88,9 +89,9 @@ def intervals(extended: Extended, noise_N: float, cfg: DiagnosisConfig) -> tuple
         centre = named(fitted)
         spread = _jackknife(named, replicates, centre)
         reach = _allowance(named, fitted, coords, inverse, allowance)
-        out.append(
-            _bounded(opt, width, centre, spread, reach, t, extended.baseline.presliding_m, parts)
-        )
+        share = rules.model_form_share
+        presliding = extended.baseline.presliding_m
+        out.append(_bounded(opt, width, centre, spread, reach, t, share, presliding, parts))
     return tuple(out)
 
 
@@ -221,14 +222,17 @@ def _allowance(
 
 def _bounded(
     opt: Option, width: int, centre: dict[str, float], spread: dict[str, float],
-    reach: dict[str, float],
-    t: float, presliding_m: float, parts: Sequence[FittedPart],
+    reach: dict[str, float], t: float, share: float, presliding_m: float,
+    parts: Sequence[FittedPart],
 ) -> Intervals:  # fmt: skip
-    """The intervals ``centre +- (t spread + reach)``, a shape's in log, clipped at its
-    search bounds and at the coefficients' physical bound."""
+    """The intervals ``centre +- (t spread + reach)``, at least ``share`` of each
+    parameter's size (a shape's in log; a coefficient's from its value at no effect):
+    the model's form, which no fit of it sees; clipped at a shape's search bounds and at
+    the coefficients' physical bound."""
     rules = opt.policy
     bounds = rules.shape_bounds(parts[0].ctx, presliding_m)
     floors = _floors(opt, width)
+    nothing = {} if opt.is_filter else _named_at(opt, np.zeros(width), parts[0].ctx)
     found: dict[str, tuple[float, float]] = {}
     at: list[str] = []
     for name, value in centre.items():
@@ -236,13 +240,15 @@ def _bounded(
         if half <= 0.0:  # a figure of the trace alone (its median standstill)
             continue
         if name in opt.shape:
-            relative = half / max(abs(value), 1e-300)
+            relative = max(half / max(abs(value), 1e-300), share)
             lo, hi = value * math.exp(-relative), value * math.exp(relative)
             lo_b, hi_b = bounds.get(name, (0.0, math.inf))
             if lo <= lo_b or hi >= hi_b:
                 at.append(name)
             found[name] = (max(lo, lo_b), min(hi, hi_b))
             continue
+        if not name.endswith("_rad"):  # an angle has no size
+            half = max(half, share * abs(value - nothing.get(name, 0.0)))
         lo, hi = value - half, value + half
         floor = floors.get(name)
         if floor is not None and lo <= floor:
@@ -250,6 +256,12 @@ def _bounded(
             lo = floor
         found[name] = (lo, hi)
     return Intervals(found, tuple(at))
+
+
+def _named_at(opt: Option, coefficients: FloatArray, ctx: fx.Context) -> dict[str, float]:
+    """The parameters and in-context figures of ``opt``'s effect at ``coefficients``."""
+    effect = opt.effect.from_coefficients(coefficients, opt.shape)
+    return {**effect.parameters(), **opt.policy.in_context(effect, ctx)}
 
 
 def _floors(opt: Option, width: int) -> dict[str, float]:
