@@ -24,27 +24,13 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from indepdiag import timed_diagnose
-from indepgen import CATALOGUE, MAIN_PARAMETER, make_trace, with_effect, write_csv
+from indepdiag import scaled, timed_diagnose
+from indepgen import CATALOGUE, make_trace, with_effect, write_csv
 
 from gms_comp.atomic import write_text
 from gms_comp.validation import output_file
 
 FACTORS = (2.0, 0.5)
-
-
-def scaled(name: str, params: dict[str, float], factor: float) -> dict[str, float]:
-    """``params`` with the effect's size (its main parameter, as the generator reads it)
-    times ``factor``."""
-    key = MAIN_PARAMETER[name]
-    out = dict(params)
-    if key == "ratio":
-        out[key] = 1.0 + (params[key] - 1.0) * factor
-    elif name == "sensor_lowpass":
-        out[key] = params[key] / factor  # a lower cut-off is a larger filter
-    else:
-        out[key] = params[key] * factor
-    return out
 
 
 def _diagnosed(gen: Any, folder: Path, tag: str, timeout_s: float) -> dict[str, Any]:
