@@ -18,11 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from gms_comp.arrays import FloatArray
-from gms_comp.measured.diagnosis.baseline import FittedPart
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, acts_locally
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
 from gms_comp.measured.diagnosis.criterion import lowers, lowers_locally
-from gms_comp.measured.diagnosis.design import GramDesign, PartDesign, solve_gram
+from gms_comp.measured.diagnosis.design import Columns, GramDesign, PartDesign, solve_gram
+from gms_comp.measured.diagnosis.refit import Extended
 from gms_comp.measured.policies import POLICIES, Policy
 from gms_comp.runtime import effects as fx
 
@@ -45,26 +45,29 @@ class Limit:
 
 
 def detection_limits(
-    parts: Sequence[FittedPart], chosen: Sequence[Option], kind: str, level_N: float,
+    extended: Extended, steps: Sequence[FloatArray], kind: str, level_N: float,
     presliding_m: float, noise_N: float, cfg: DiagnosisConfig,
 ) -> dict[str, Limit]:  # fmt: skip
-    """Each catalogue effect's limit on the design of ``chosen`` (the final model's
-    options) less that effect; ``kind``: the force kind (effects for it only)."""
+    """Each catalogue effect's limit on the final design of ``extended`` less that effect,
+    the baseline free to take up part of it along its level's and knots' ``steps``
+    (:func:`.intervals.tangents`); ``kind``: the force kind (effects for it only)."""
+    parts, chosen = extended.parts, extended.chosen
     out: dict[str, Limit] = {}
-    scorers: dict[tuple[int, ...], Scorer] = {}
+    models: dict[tuple[int, ...], tuple[Scorer, GramDesign]] = {}
     for name, rules in POLICIES.items():
         if kind not in rules.force_kinds:
             continue
         others = [o for o in chosen if o.effect is not rules.effect]
         key = tuple(id(o) for o in others)
-        if key not in scorers:
-            scorers[key] = Scorer(parts, others, cfg.selection)
-        scorer = scorers[key]
+        if key not in models:
+            scorer = Scorer(parts, others, cfg.selection)
+            models[key] = scorer, _free(scorer.designs, steps)
+        scorer, free = models[key]
         shapes = rules.detection_shapes(parts[0].ctx, presliding_m, cfg.detection.shapes)
         found = [
             e
             for shape in shapes
-            if (e := _limit(scorer, rules, shape, level_N, noise_N, cfg)) is not None
+            if (e := _limit(scorer, free, rules, shape, level_N, noise_N, cfg)) is not None
         ]
         if found:
             found.sort(key=rules.size)
@@ -76,17 +79,30 @@ def detection_limits(
     return out
 
 
+def _free(designs: Sequence[PartDesign], steps: Sequence[FloatArray]) -> GramDesign:
+    """The designs with the baseline's steps (free coefficients) beside their columns."""
+    return GramDesign([
+        PartDesign(
+            Columns(np.column_stack([d.columns.values, s]),
+                    np.concatenate([d.columns.lower, np.full(s.shape[1], -np.inf)])),
+            d.force_N, d.train, d.held,
+        )
+        for d, s in zip(designs, steps, strict=True)
+    ])  # fmt: skip
+
+
 def _limit(
-    scorer: Scorer, rules: type[Policy], shape: dict[str, float], level_N: float,
-    noise_N: float, cfg: DiagnosisConfig,
+    scorer: Scorer, free: GramDesign, rules: type[Policy], shape: dict[str, float],
+    level_N: float, noise_N: float, cfg: DiagnosisConfig,
 ) -> fx.Effect | None:  # fmt: skip
-    """The smallest effect of ``rules`` at ``shape`` the criterion keeps, or None."""
+    """The smallest effect of ``rules`` at ``shape`` the criterion keeps, or None
+    (``free``: the design of ``scorer`` with the baseline's steps beside it)."""
     if issubclass(rules.effect, fx.FilterEffect):
-        return _filter_limit(scorer, rules, shape, level_N, cfg)
+        return _filter_limit(scorer, free, rules, shape, level_N, cfg)
     effect: fx.Effect | None = None
     for _ in range(2 if rules.set_by_size else 1):  # a shape set by the size: at the limit's
         opt = Option(rules.effect, shape)
-        keep, unit = _additive(scorer, opt, level_N, noise_N, cfg)
+        keep, unit = _additive(scorer, free, opt, level_N, noise_N, cfg)
         size = _bisect(keep, _floor(scorer, opt, unit, level_N, cfg), cfg.detection.bisections)
         if size is None:
             return effect
@@ -96,8 +112,9 @@ def _limit(
 
 
 def _additive(
-    scorer: Scorer, opt: Option, level_N: float, noise_N: float, cfg: DiagnosisConfig
-) -> tuple[Callable[[float], bool], FloatArray]:
+    scorer: Scorer, free: GramDesign, opt: Option, level_N: float, noise_N: float,
+    cfg: DiagnosisConfig,
+) -> tuple[Callable[[float], bool], FloatArray]:  # fmt: skip
     """Whether the criterion keeps ``opt``'s effect added at a size (its first
     coefficient), and the unit coefficients (one size's)."""
     rules = cfg.selection
@@ -106,32 +123,31 @@ def _additive(
     unit = np.zeros(extra[0].values.shape[1])
     unit[0] = 1.0
     x = [e.values @ unit for e in extra]
-    gram = scorer.gram
+    gram = free
     pushed = gram.cross_products([c[:, None] for c in x])[0][:, 0]
+    new = gram.trial(extra)[1]
     held_x = np.concatenate([c[fp.part.held] for c, fp in zip(x, scorer.parts, strict=True)])
     apart = scorer.told_apart(opt)
     local = acts_locally(trial, rules)
     events = None
     if local:
-        base_y, new_y = scorer.left_out(trial)
+        spans = scorer.events(trial)
+        base_y, new_y = gram.left_out(extra, spans, rules.left_out_folds)
         moved = GramDesign(
-            [
-                PartDesign(d.columns, c, d.train, d.held)
-                for d, c in zip(scorer.designs, x, strict=True)
-            ]
+            [PartDesign(p.columns, c, p.train, p.held) for p, c in zip(gram.parts, x, strict=True)]
         )
-        base_x = moved.left_out(extra, scorer.events(trial), rules.left_out_folds)[0]
+        base_x = moved.left_out(extra, spans, rules.left_out_folds)[0]
         events = (base_y, base_x, new_y)
     peak = float(np.max(np.abs(x[0]))) if x[0].size else 0.0
 
     def keep(size: float) -> bool:
         theta = solve_gram(gram.gram, gram.rhs + size * pushed, gram.lower)
         base = gram.held_residual(theta) + size * held_x
-        worth = lowers(rules, base, trial.held_residual_N)
+        worth = lowers(rules, base, new)
         if not worth and events is not None:
             worth = lowers_locally(rules, events[0] + size * events[1], events[2], noise_N)
         if worth and apart is not None:
-            worth = bool(np.any(apart)) and lowers(rules, base[apart], trial.held_residual_N[apart])
+            worth = bool(np.any(apart)) and lowers(rules, base[apart], new[apart])
         effect = opt.effect.from_coefficients(size * unit, opt.shape)
         relative = opt.policy.relative_size(effect, scorer.parts[0].ctx)
         if relative is not None and relative < rules.min_effect_fraction:
@@ -170,8 +186,8 @@ def _bisect(keep: Callable[[float], bool], start: float, halvings: int) -> float
 
 
 def _filter_limit(
-    scorer: Scorer, rules: type[Policy], shape: dict[str, float], level_N: float,
-    cfg: DiagnosisConfig,
+    scorer: Scorer, free: GramDesign, rules: type[Policy], shape: dict[str, float],
+    level_N: float, cfg: DiagnosisConfig,
 ) -> fx.Effect | None:  # fmt: skip
     """The smallest (``Policy.size``) filter of the model force in its shape bounds that
     the criterion keeps, or None: its size key bisected in log between its bounds."""
@@ -179,7 +195,8 @@ def _filter_limit(
     assert issubclass(effect_cls, fx.FilterEffect)
     key = rules.size_parameter
     lo, hi = rules.shape_bounds(scorer.parts[0].ctx, 0.0)[key]
-    gram = scorer.gram
+    gram = free
+    now = gram.held_residual(gram.fit())
     models = [scorer.model(i) for i in range(len(scorer.parts))]
 
     def at(u: float) -> fx.FilterEffect:
@@ -199,7 +216,7 @@ def _filter_limit(
         held_d = np.concatenate([c[fp.part.held] for c, fp in zip(d, scorer.parts, strict=True)])
         base = gram.held_residual(theta) + held_d
         big = float(np.max(np.abs(d[0]))) >= cfg.selection.min_effect_fraction * level_N
-        return big and lowers(cfg.selection, base, scorer.held_residual_N)
+        return big and lowers(cfg.selection, base, now)
 
     if not keep(1.0):
         return None

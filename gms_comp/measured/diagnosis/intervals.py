@@ -52,15 +52,21 @@ class Intervals:
 Column = tuple[int | None, str, list[FloatArray]]  # owner (a chosen index), key, per part
 
 
-def intervals(extended: Extended, noise_N: float, cfg: DiagnosisConfig) -> tuple[Intervals, ...]:
-    """The intervals of each kept effect of ``extended`` (ranked order); ``noise_N``: the
-    force's noise (what the misfit is above)."""
+def intervals(
+    extended: Extended, steps: Sequence[FloatArray], noise_N: float, cfg: DiagnosisConfig
+) -> tuple[Intervals, ...]:
+    """The intervals of each kept effect of ``extended`` (ranked order); ``steps``: the
+    baseline's (:func:`tangents`); ``noise_N``: the force's noise (what the misfit is
+    above)."""
     parts, chosen, theta = extended.parts, list(extended.chosen), extended.theta
     if not chosen:
         return ()
     designs = design(parts, chosen)
     model = [d.columns.values @ theta for d in designs]
-    moved = _level_columns(extended, model) + _shape_columns(parts, chosen, theta, model)
+    level: list[Column] = [
+        (None, "level", [s[:, j] for s in steps]) for j in range(steps[0].shape[1])
+    ]
+    moved = level + _shape_columns(parts, chosen, theta, model)
     gram = GramDesign([
         PartDesign(
             Columns(np.column_stack([d.columns.values, *(c[2][i] for c in moved)]),
@@ -93,6 +99,18 @@ def intervals(extended: Extended, noise_N: float, cfg: DiagnosisConfig) -> tuple
         presliding = extended.baseline.presliding_m
         out.append(_bounded(opt, width, centre, spread, reach, t, share, presliding, parts))
     return tuple(out)
+
+
+def tangents(extended: Extended) -> list[FloatArray]:
+    """Each part's columns of the model's change per step of the free baseline's level
+    and knots (:func:`_level_columns`), one (rows, k) array per part (k may be 0): the
+    directions the baseline can move in to take up what an effect would add."""
+    model = [d.columns.values @ extended.theta for d in design(extended.parts, extended.chosen)]
+    moved = _level_columns(extended, model)
+    return [
+        np.column_stack([c[2][i] for c in moved]) if moved else np.zeros((m.size, 0))
+        for i, m in enumerate(model)
+    ]
 
 
 def _level_columns(extended: Extended, model: Sequence[FloatArray]) -> list[Column]:

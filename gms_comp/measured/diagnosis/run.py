@@ -26,7 +26,7 @@ from gms_comp.measured.diagnosis.coverage import at_bound, caveats
 from gms_comp.measured.diagnosis.criterion import lowers
 from gms_comp.measured.diagnosis.design import rms
 from gms_comp.measured.diagnosis.detection import detection_limits
-from gms_comp.measured.diagnosis.intervals import intervals
+from gms_comp.measured.diagnosis.intervals import intervals, tangents
 from gms_comp.measured.diagnosis.level import extended_force
 from gms_comp.measured.diagnosis.phases import phase_masks, residual_by_phase
 from gms_comp.measured.diagnosis.prepare import Prepared, encoder_force_ratio, prepare
@@ -163,6 +163,7 @@ def _record(
     effects = [c.effect for c in extended.ranked]
     bounded = at_bound(effects, main.ctx, judged.presliding_m, cfg.caveats.at_bound)
     velocity = main.part.kin.velocity_m_s
+    steps = tangents(extended)  # the baseline's level and knots, stepped
     return Diagnosis(
         effect=verdict(extended.ranked, structure),
         ranked=extended.ranked,
@@ -182,10 +183,10 @@ def _record(
         # the table's keys are Prepared's fields of the same names
         extension_context={key: getattr(prepared, key) for key in EXTENSION_CONTEXT_KEYS},
         in_context=tuple(policy(e).in_context(e, main.ctx) for e in effects),
-        intervals=intervals(extended, prepared.noise_N, cfg),
+        intervals=intervals(extended, steps, prepared.noise_N, cfg),
         limits=detection_limits(
-            extended.parts,
-            extended.chosen,
+            extended,
+            steps,
             prepared.force_kind,
             baseline.sliding_force_N,
             baseline.presliding_m,
