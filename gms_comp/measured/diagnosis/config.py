@@ -137,8 +137,6 @@ class IntervalConfig:
     level: float = key(0.95, in_range(0.5, 0.999), "the intervals' confidence level")
     jackknife_blocks: int = key(20, in_range(3, 1000), "contiguous blocks of training rows "
                                 "left out in turn: the noise's correlation, the misfit")
-    misfit_patterns: float = key(20.0, in_range(1.0, 1e9), "the misfit above the noise, spread "
-                                 "over this many patterns, widens each interval (1: worst)")
     model_form_share: float = key(0.06, UNIT, "each interval is at least this share of its "
                                   "parameter's size: the model's form, which no fit sees")
     # fmt: on

@@ -257,22 +257,10 @@ class GramDesign:
     def refitted(self, values: Sequence[FloatArray]) -> tuple[FloatArray, FloatArray]:
         """Coefficients and held-out residual of another design on the same rows and
         bounds (``values``: one (rows, m) array per part, this design's columns through
-        a filter), fitted on the training rows. Its rows are read in place, run by run
-        of the masks (60 blocks): gathered, a filter trial's rows were copied twice, a
-        third of its time."""
+        a filter), fitted on the training rows (its rows read in place)."""
         gram, rhs = self._train_gram(values)
         theta = solve_gram(gram, rhs, self.lower)
         return theta, self._held_y - np.concatenate(self._held_prediction(values, theta))
-
-    @property
-    def train_sse(self) -> float:
-        """The training sum of squares the design leaves, fitted on the training rows."""
-        return max(self._yy + solve_gram_sse(self.gram, self.rhs, self.lower)[1], 0.0)
-
-    @property
-    def n_train(self) -> int:
-        """How many training rows the design is fitted on."""
-        return self._n_train
 
     def jackknife(self, groups: int) -> list[FloatArray]:
         """The coefficients fitted with each of ``groups`` contiguous groups of the training

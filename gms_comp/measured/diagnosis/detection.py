@@ -32,15 +32,11 @@ DOUBLINGS = 40
 
 @dataclass(frozen=True)
 class Limit:
-    """The just-detectable effect at the stated shape, and the smallest and largest limit
-    over the shapes tried."""
+    """The just-detectable effect at the stated shape: its parameters and what they come
+    to along the trace (``figures``); the figure the limit is told in
+    (``Policy.limit_figure``) at the smallest and largest limit over the shapes tried."""
 
-    effect: fx.Effect
-    # its parameters (the spec's names) and what they come to along the trace
-    # (``Policy.in_context``: a dwell gain after the median standstill)
     figures: dict[str, float]
-    # the figure the limit is told in (``Policy.limit_figure``) at the smallest and the
-    # largest limit over the shapes tried
     span: dict[str, list[float]]
 
 
@@ -75,7 +71,7 @@ def detection_limits(
             told = rules.limit_figure or rules.size_parameter
             span = sorted(float(f[told]) for f in figures if told in f)
             stated = (len(found) - 1) // 2
-            out[name] = Limit(found[stated], figures[stated], {told: [span[0], span[-1]]})
+            out[name] = Limit(figures[stated], {told: [span[0], span[-1]]})
     return out
 
 
@@ -103,7 +99,9 @@ def _limit(
     for _ in range(2 if rules.set_by_size else 1):  # a shape set by the size: at the limit's
         opt = Option(rules.effect, shape)
         keep, unit = _additive(scorer, free, opt, level_N, noise_N, cfg)
-        size = _bisect(keep, _floor(scorer, opt, unit, level_N, cfg), cfg.detection.bisections)
+        peak = float(np.max(np.abs(scorer.extra(opt)[0].values @ unit)))
+        start = cfg.selection.min_effect_fraction * level_N / peak if peak > 0.0 else 1e-12
+        size = _bisect(keep, start, cfg.detection.bisections)
         if size is None:
             return effect
         effect = rules.effect.from_coefficients(size * unit, shape)
@@ -155,16 +153,6 @@ def _additive(
         return worth and size * peak >= rules.min_effect_fraction * level_N
 
     return keep, unit
-
-
-def _floor(
-    scorer: Scorer, opt: Option, unit: FloatArray, level_N: float, cfg: DiagnosisConfig
-) -> float:
-    """Where the bisection starts: the size at which the effect's force reaches the size
-    floor (a tiny size where the column is flat)."""
-    x = scorer.extra(opt)[0].values @ unit
-    peak = float(np.max(np.abs(x))) if x.size else 0.0
-    return cfg.selection.min_effect_fraction * level_N / peak if peak > 0.0 else 1e-12
 
 
 def _bisect(keep: Callable[[float], bool], start: float, halvings: int) -> float | None:

@@ -6,9 +6,8 @@ parameter (a free baseline's C_v and v_t, every kept shape in log), the model's 
 step. A delete-a-group jackknife over ``jackknife_blocks`` contiguous blocks of the
 training rows gives each parameter's spread (the noise, its correlation in time, the
 trades between parameters, the misfit where it changes along the trace); each interval
-also holds the most the misfit left above the noise could move the parameter, spread over
-``misfit_patterns`` patterns, and at least ``model_form_share`` of the parameter's size
-(the misfit the fit absorbs never shows). Clipped at a shape's search bounds and at the
+is at least ``model_form_share`` of the parameter's size (the misfit a fit absorbs into its
+parameters never shows in its residual). Clipped at a shape's search bounds and at the
 coefficients' physical bound; reaching either is said (``at_bound``).
 """
 
@@ -53,11 +52,10 @@ Column = tuple[int | None, str, list[FloatArray]]  # owner (a chosen index), key
 
 
 def intervals(
-    extended: Extended, steps: Sequence[FloatArray], noise_N: float, cfg: DiagnosisConfig
+    extended: Extended, steps: Sequence[FloatArray], cfg: DiagnosisConfig
 ) -> tuple[Intervals, ...]:
     """The intervals of each kept effect of ``extended`` (ranked order); ``steps``: the
-    baseline's (:func:`tangents`); ``noise_N``: the force's noise (what the misfit is
-    above)."""
+    baseline's (:func:`tangents`)."""
     parts, chosen, theta = extended.parts, list(extended.chosen), extended.theta
     if not chosen:
         return ()
@@ -79,25 +77,18 @@ def intervals(
     replicates = np.array(gram.jackknife(rules.jackknife_blocks))
     groups = replicates.shape[0]
     t = float(stats.t.ppf(0.5 + rules.level / 2, groups - 1))
-    inverse = np.asarray(np.linalg.pinv(gram.gram), dtype=np.float64)
-    train_rms = math.sqrt(gram.train_sse / max(gram.n_train, 1))
-    misfit = math.sqrt(max(train_rms**2 - noise_N**2, 0.0))
-    allowance = misfit * math.sqrt(gram.n_train / rules.misfit_patterns)
     out = []
     start = parts[0].base.values.shape[1]
     fitted = np.concatenate([theta, np.zeros(len(moved))])
     for k, (opt, width) in enumerate(zip(chosen, widths(parts, chosen), strict=True)):
-        coords = list(range(start, start + width))
         start += width
         keys = [(theta.size + j, c[1]) for j, c in enumerate(moved) if c[0] == k]
-        coords += [j for j, _ in keys]
         named = _reader(opt, slice(start - width, start), keys, parts[0].ctx)
         centre = named(fitted)
         spread = _jackknife(named, replicates, centre)
-        reach = _allowance(named, fitted, coords, inverse, allowance)
         share = rules.model_form_share
         presliding = extended.baseline.presliding_m
-        out.append(_bounded(opt, width, centre, spread, reach, t, share, presliding, parts))
+        out.append(_bounded(opt, width, centre, spread, t, share, presliding, parts))
     return tuple(out)
 
 
@@ -215,35 +206,11 @@ def _jackknife(named: Reader, replicates: FloatArray, centre: dict[str, float]) 
     return out
 
 
-def _allowance(
-    named: Reader, fitted: FloatArray, coords: Sequence[int], inverse: FloatArray, size: float
-) -> dict[str, float]:
-    """The most a misfit of ``size`` (its norm over the training rows, spread over the
-    patterns) could move each parameter: ``size`` sqrt(g' G^-1 g), g the parameter's
-    gradient over ``coords`` of the linearised system."""
-    centre = named(fitted)
-    sub = inverse[np.ix_(coords, coords)]
-    scale = np.sqrt(np.maximum(np.diag(sub), 1e-300))
-    grads = {name: np.zeros(len(coords)) for name in centre}
-    for i, j in enumerate(coords):
-        step = 1e-3 * scale[i]
-        moved = fitted.copy()
-        moved[j] += step
-        after = named(moved)
-        for name, value in centre.items():
-            change = after[name] - value
-            if name.endswith("_rad"):
-                change = math.remainder(change, 2 * math.pi)
-            grads[name][i] = change / step
-    return {name: size * math.sqrt(max(float(g @ sub @ g), 0.0)) for name, g in grads.items()}
-
-
 def _bounded(
-    opt: Option, width: int, centre: dict[str, float], spread: dict[str, float],
-    reach: dict[str, float], t: float, share: float, presliding_m: float,
-    parts: Sequence[FittedPart],
+    opt: Option, width: int, centre: dict[str, float], spread: dict[str, float], t: float,
+    share: float, presliding_m: float, parts: Sequence[FittedPart],
 ) -> Intervals:  # fmt: skip
-    """The intervals ``centre +- (t spread + reach)``, at least ``share`` of each
+    """The intervals ``centre +- t spread``, at least ``share`` of each
     parameter's size (a shape's in log; a coefficient's from its value at no effect):
     the model's form, which no fit of it sees; clipped at a shape's search bounds and at
     the coefficients' physical bound."""
@@ -254,7 +221,7 @@ def _bounded(
     found: dict[str, tuple[float, float]] = {}
     at: list[str] = []
     for name, value in centre.items():
-        half = t * spread[name] + reach[name]
+        half = t * spread[name]
         if half <= 0.0:  # a figure of the trace alone (its median standstill)
             continue
         if name in opt.shape:

@@ -130,17 +130,12 @@ def _judged(selection: Selection, opt: Option) -> bool:
 
 
 def refit_kept(
-    selection: Selection,
-    cfg: DiagnosisConfig,
-    placed: Baseline | None = None,
+    selection: Selection, cfg: DiagnosisConfig, placed: Baseline | None = None,
     alone: bool = False,
-) -> Extended:
-    """All coefficients fitted jointly with every kept effect present; the extended
-    model (GMS kernel, then the effects) simulated along every part.
-
-    Once the slip level is refined with the kept effects present, a later-ranked effect
-    that is no longer admissible on top of the others (it stood in for a slip level the
-    blind baseline had not found) is dropped."""
+) -> Extended:  # fmt: skip
+    """All coefficients fitted jointly with every kept effect present, the backward pass on
+    the joint design (:func:`_prune`), the extended model (GMS kernel, then the effects)
+    simulated along every part."""
     chosen = list(selection.chosen)
     history = list(selection.heldout_rms_N)
     start, placed = _placed_again(selection.baseline, chosen, cfg, placed)
@@ -250,10 +245,9 @@ def _prune(
     parts: Sequence[FittedPart], chosen: list[Option], history: list[float],
     cfg: DiagnosisConfig, level_N: float, noise_N: float,
 ) -> tuple[list[Option], list[float]]:  # fmt: skip
-    """Drop a kept effect that is no longer admissible on top of all the others (it
-    stood in for a slip level the blind baseline had not found, or for an effect kept
-    after it: a ripple whose wavelength follows a drift along a trajectory), the first
-    kept included."""
+    """The backward pass on the joint design: each kept effect (the last first) dropped if
+    it is no longer worth keeping on top of the others (it stood in for a slip level the
+    blind baseline had not found, or for an effect kept after it)."""
     if len(chosen) < 2:
         return chosen, history
     kept = list(chosen)
@@ -301,11 +295,8 @@ def _rank(
     parts: Sequence[FittedPart], chosen: list[Option], forces: list[FloatArray],
     rules: SelectionConfig,
 ) -> tuple[list[Option], list[float]]:  # fmt: skip
-    """The kept effects, the largest force first (the RMS along the trace of what each
-    adds to the jointly fitted model, ``forces``: :func:`_added_forces`; the selection
-    takes first what lowers the held-out RMS most, and a level effect such as a drift is
-    partly carried by the GMS until it is kept), each with the held-out RMS once it is
-    added in that order."""
+    """The kept effects, the largest force first (the RMS of what each adds to the jointly
+    fitted model, ``forces``), each with the held-out RMS once it is added in that order."""
     size = {id(o): rms(f) for o, f in zip(chosen, forces, strict=True)}
     ranked = sorted(chosen, key=lambda o: size[id(o)], reverse=True)
     held = [Scorer(parts, ranked[: i + 1], rules).heldout_rms_N for i in range(len(ranked))]

@@ -183,7 +183,7 @@ def _record(
         # the table's keys are Prepared's fields of the same names
         extension_context={key: getattr(prepared, key) for key in EXTENSION_CONTEXT_KEYS},
         in_context=tuple(policy(e).in_context(e, main.ctx) for e in effects),
-        intervals=intervals(extended, steps, prepared.noise_N, cfg),
+        intervals=intervals(extended, steps, cfg),
         limits=detection_limits(
             extended,
             steps,
