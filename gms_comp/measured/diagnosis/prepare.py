@@ -73,8 +73,8 @@ class Prepared:
     reversal_deadband_m: float
     position_resolution_m: float
     rest_band_m: float
-    # the force's noise (standard deviation), white or coloured: read once, from the
-    # trace's every sample (:func:`noise_at_rest`), and used wherever the noise is meant
+    # the force's noise (standard deviation), white or coloured (:func:`noise_at_rest`):
+    # read once, from every sample, and what every test of the diagnosis reads
     noise_N: float = 0.0
     encoder_step_m: float = 0.0  # 0: the position is not on an encoder's counts
     dequantised: bool = False  # the kinematics are from the counts read as motion

@@ -7,8 +7,10 @@ the largest stands well above the noise and is a share of the sliding force wort
 compensating (or the residual as a whole stands far above the noise), the answer is
 ``unknown`` and the findings say where the residual lives. A spot (a fraction of a mm
 where the level changes) is searched on every sample, and must show with the other sign
-where the same bin is travelled the other way (friction acts both ways). The noise is the
-one the diagnosis read from the force (``Prepared.noise_N``, white or coloured).
+where the same bin is travelled the other way (friction acts both ways). The bin means are
+compared with what noise gives them: the diagnosis's noise (``Prepared.noise_N``) or the
+white part of the residual tested (its sample-to-sample changes, which no bin can hold),
+whichever is larger.
 """
 
 from __future__ import annotations
@@ -134,6 +136,7 @@ def residual_structure(
             labels[mask & (labels < 0)] = i + 100 * j
         phase.append(labels[held])
     r = np.concatenate(res)
+    noise = max(noise, rms(np.diff(r)) / np.sqrt(2.0))  # the residual's white part
     v, x, d = np.concatenate(vel), np.concatenate(pos), np.concatenate(dirn)
     findings = [_phase_finding(r, np.concatenate(phase), parts, presliding_m, noise)]
     moving = _moving(v)
