@@ -233,11 +233,8 @@ def run_held_out(
     theta: FloatArray,
 ) -> float:  # fmt: skip
     """The held-out RMS of the extended model of coefficients ``theta`` on ``basis`` as the
-    compensator runs it (:func:`extended_force`), not as the design scales the GMS force:
-    on unknown_stroke_profile-249 of the independent generator (a stroke profile outside
-    the catalogue) the rational tail's level at C_v 1.96 with a Stribeck of ratio 2.2 held
-    out 0.240 N in the design and 0.379 N run (the exponential's, at C_v 1.40: 0.274 N
-    and 0.281 N)."""
+    compensator runs it (:func:`extended_force`), not as the design scales the GMS force
+    (a level and a fall far from the truth's can hold out well in the design only)."""
     gms, extensions = extended_model(baseline, basis, parts, chosen, theta)
     return rms(held_residual(parts, [extended_force(fp, gms, extensions) for fp in parts]))
 
@@ -271,9 +268,8 @@ def refine_slip_level(
     if not isinstance(basis, FreeBasis):
         return None
     vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in baseline.prepared.parts)
-    # with the kept effects present the cap is lifted (a third of the top speed): on the
-    # EMPS ball screw the extended model's level keeps rising above 2 mm/s (capped there,
-    # the training error went from 2.48 % to 2.69 %; at a third, 2.27 % train, 2.96 %)
+    # with the kept effects present the cap is lifted (a third of the top speed: the EMPS
+    # ball screw's level keeps rising above 2 mm/s)
     vt_range = transition_range(vmax, np.inf)
 
     # a level met again (a step back, the vertex's C_v +- step) is not refitted
