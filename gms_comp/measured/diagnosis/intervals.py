@@ -88,7 +88,10 @@ def intervals(
         spread = _jackknife(named, replicates, centre)
         share = rules.model_form_share
         presliding = extended.baseline.presliding_m
-        out.append(_bounded(opt, width, centre, spread, t, share, presliding, parts))
+        found = _bounded(opt, width, centre, spread, t, share, presliding, parts)
+        ridge = opt.policy.ridge(centre, found.bounds, parts[0].ctx, presliding)
+        bounds = {k: _union(v, ridge[k]) if k in ridge else v for k, v in found.bounds.items()}
+        out.append(Intervals(bounds, tuple(dict.fromkeys([*found.at_bound, *ridge]))))
     return tuple(out)
 
 
@@ -241,6 +244,10 @@ def _bounded(
             lo = floor
         found[name] = (lo, hi)
     return Intervals(found, tuple(at))
+
+
+def _union(a: tuple[float, float], b: tuple[float, float]) -> tuple[float, float]:
+    return min(a[0], b[0]), max(a[1], b[1])
 
 
 def _named_at(opt: Option, coefficients: FloatArray, ctx: fx.Context) -> dict[str, float]:

@@ -114,6 +114,16 @@ class Policy:
         return {}
 
     @classmethod
+    def ridge(
+        cls, figures: Mapping[str, float], bounds: Mapping[str, tuple[float, float]],
+        ctx: fx.Context, presliding_m: float,
+    ) -> dict[str, tuple[float, float]]:  # fmt: skip
+        """The range of the parameters a trace determines only together, along what it
+        does determine (``figures``: the fitted parameters and in-context figures,
+        ``bounds``: their intervals); none by default."""
+        return {}
+
+    @classmethod
     def relative_size(cls, effect: fx.Effect, ctx: fx.Context) -> float | None:
         """Its size along ``ctx`` as a fraction of the friction it scales, where that is
         how it is judged worth keeping (None: by the force it changes)."""

@@ -67,6 +67,23 @@ class DwellTimePolicy(Policy):
         }
 
     @classmethod
+    def ridge(
+        cls, figures: Mapping[str, float], bounds: Mapping[str, tuple[float, float]],
+        ctx: fx.Context, presliding_m: float,
+    ) -> dict[str, tuple[float, float]]:  # fmt: skip
+        """gamma and tau along the gain after the median standstill the trace determines
+        (within its interval): tau anywhere in its bounds, gamma what gives that gain."""
+        gain = bounds.get("gain_after_median_dwell")
+        if gain is None or "median_dwell_s" not in figures:
+            return {}
+        median = figures["median_dwell_s"]
+        lo, hi = cls.shape_bounds(ctx, presliding_m)["tau_s"]
+        return {
+            "tau_s": (lo, hi),
+            "gamma": (gain[0] / math.log1p(median / lo), gain[1] / math.log1p(median / hi)),
+        }
+
+    @classmethod
     def relative_size(cls, effect: fx.Effect, ctx: fx.Context) -> float | None:
         """The break-away gain after the median standstill (:meth:`in_context`)."""
         return cls.in_context(effect, ctx).get("gain_after_median_dwell", 0.0)
