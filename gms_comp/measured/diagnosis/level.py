@@ -88,9 +88,7 @@ def with_free_level(
     """``effect``'s best trial (held-out RMS) on top of the options ``now`` holds, over the
     grid of slip levels; None for a table's baseline, or where ``now`` leaves less than
     ``free_level_ratio`` x the noise held out. ``fitted``: the baselines fitted so far on
-    the grid's levels, by (C_v, transition velocity), kept across the selection's rounds
-    (one baseline on one level does not depend on the effects chosen; 15 fits a round,
-    and 2 around the best)."""
+    the grid's levels, by (C_v, v_t), kept across the selection's rounds."""
     basis = baseline.basis
     if not isinstance(basis, FreeBasis):
         return None
@@ -142,13 +140,11 @@ def with_free_level(
 def level_with_shape(
     baseline: Baseline, basis: Basis, chosen: list[Option], refits: int, alone: bool = False
 ) -> tuple[FreeBasis, list[Option]] | None:
-    """A kept effect's level shape (:func:`level_traded`) searched together with the
-    free basis's slip level (C_v and v_t; see
-    ``JOINT_LEVEL_EVALS``) on each of the level's tails (slip_level.REFIT_TAILS, the
-    basis's first), each trial costed by the training RMS once the GMS force is updated
-    ``refits`` times; of the tails' best points that train better than the start, the one
-    that holds out best; None when no such effect is kept (unless ``alone``: then the
-    level alone is searched), the basis is a table's, or the search found nothing better."""
+    """A kept effect's level shape (:func:`level_traded`) searched with the free basis's
+    C_v and v_t on each of the level's tails, each trial costed by the training RMS once
+    the GMS force is updated ``refits`` times; of the tails' best points that train better
+    than the start, the one that holds out best; None when no such effect is kept (unless
+    ``alone``: the level alone), the basis is a table's, or nothing better was found."""
     at = level_traded(chosen)
     if (at is None and not alone) or not isinstance(basis, FreeBasis):
         return None

@@ -236,12 +236,10 @@ def _spot(
     r: FloatArray, x: FloatArray, d: FloatArray, noise: float, rules: StructureConfig,
     steady: BoolArray | None = None,
 ) -> Finding | None:  # fmt: skip
-    """The largest significant mean of the residual over ``spot_width_m`` of travel in
-    one direction (its size is that mean, not an RMS over the trace), or None. Friction
-    changes sign with the direction, so a spot must show with the opposite sign, at least
-    ``spot_partner_z`` standard errors from zero, where the same bin is travelled the other
-    way; where it is not travelled, on the ``steady`` samples with a bin beside it
-    (module note)."""
+    """The largest significant mean of the residual over ``spot_width_m`` of travel one
+    way (its size that mean), or None: with the opposite sign where the same bin is
+    travelled the other way; where it is not, on the ``steady`` samples, with the next bin
+    the same way beside it."""
     if noise <= 0.0:
         return None
     width = rules.spot_width_m
@@ -253,13 +251,9 @@ def _spot(
     travelled = (keys[at] == other) & (counts[at] >= rules.spot_partner_samples)
     partner = travelled & (np.sign(means[at]) == -np.sign(means)) & (z[at] >= rules.spot_partner_z)
     ok = (counts >= rules.spot_min_samples) & (z >= rules.spot_z) & partner
-    found = [
-        (
-            float(abs(means[i])),
-            _words(keys[i], means[i], width, f"{means[at[i]]:+.3g} N the other way"),
-        )
-        for i in np.flatnonzero(ok)
-    ]
+    other_way = [f"{means[at[i]]:+.3g} N the other way" for i in range(keys.size)]
+    found = [(float(abs(means[i])), _words(keys[i], means[i], width, other_way[i]))
+             for i in np.flatnonzero(ok)]  # fmt: skip
     if steady is not None and np.any(steady):
         one_way = keys[~travelled]
         keys, counts, means, z = _binned(r[steady], key[steady], noise)
@@ -273,10 +267,9 @@ def _spot(
                 & (z[at] >= rules.spot_partner_z)
             )
         ok = seen & beside & (counts >= rules.spot_one_way_samples) & (z >= rules.spot_z)
-        found += [
-            (float(abs(means[i])), _words(keys[i], means[i], width, "not crossed the other way"))
-            for i in np.flatnonzero(ok)
-        ]
+        one = "not crossed the other way"
+        found += [(float(abs(means[i])), _words(keys[i], means[i], width, one))
+                  for i in np.flatnonzero(ok)]  # fmt: skip
     if not found:
         return None
     size, where = max(found)
