@@ -245,6 +245,9 @@ def _zoom(d: Diagnosis, event: str) -> Figure | None:
     extended model's residual is largest; None where the trace has none."""
     s = d.series
     at = _events(s["velocity_m_s"], event)
+    if event == "break-away":  # a start the same way as before the rest, where there is one
+        same_way = np.setdiff1d(at, _events(s["velocity_m_s"], "reversal"))
+        at = same_way if same_way.size else at
     if at.size == 0:
         return None
     residual = np.abs(s["force_N"] - s["extended_N"]) + np.abs(s["force_N"] - s["baseline_N"])
