@@ -33,6 +33,8 @@ from gms_comp.runtime import effects as fx
 # Steps of the linearisation: C_v by LEVEL_STEP, v_t and every shape by a factor e^LOG_STEP.
 LEVEL_STEP = 0.01
 LOG_STEP = 0.02
+# A shape's interval spans at most e^+-MAX_LOG_WIDTH (then its search bounds clip it).
+MAX_LOG_WIDTH = 50.0
 
 
 @dataclass(frozen=True)
@@ -227,8 +229,8 @@ def _bounded(
         half = t * spread[name]
         if half <= 0.0:  # a figure of the trace alone (its median standstill)
             continue
-        if name in opt.shape:
-            relative = max(half / max(abs(value), 1e-300), share)
+        if name in opt.shape:  # in log, far past any search bound at the most
+            relative = min(max(half / max(abs(value), 1e-300), share), MAX_LOG_WIDTH)
             lo, hi = value * math.exp(-relative), value * math.exp(relative)
             lo_b, hi_b = bounds.get(name, (0.0, math.inf))
             if lo <= lo_b or hi >= hi_b:
