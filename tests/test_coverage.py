@@ -92,6 +92,14 @@ def test_a_caveat_is_given_only_where_it_concerns_an_effect_named() -> None:
     assert set(SPEED_OR_DIRECTION) >= {"stribeck", "direction_asymmetry"}
 
 
+def test_a_mass_in_a_force_read_as_friction_is_said_to_be_perhaps_a_drive_force() -> None:
+    v = profile((6.9e-3, 4000), (-6.9e-3, 4000))
+    assert [c.kind for c in caveats(v, STILL, ["inertia"], RULES)] == ["drive_force"]
+    assert "--force-kind drive" in caveats(v, STILL, ["inertia", "offset"], RULES)[0].text
+    assert caveats(v, STILL, ["inertia"], RULES, force_kind="drive") == ()
+    assert caveats(v, STILL, ["offset", "inertia"], RULES) == ()  # only a mass named first
+
+
 def test_a_rival_that_took_most_of_the_first_effect_s_drop_is_a_near_tie() -> None:
     # independent stribeck-223: drift and stribeck both took 0.1704 N to 0.1551 N
     caveat = near_tie("drift", 0.1704, [("drift", 0.1551), ("stribeck", 0.1551)], RULES.near_tie)

@@ -199,3 +199,13 @@ def test_a_speed_or_direction_effect_named_in_place_of_the_truth_carries_a_cavea
         if outcome.named in pairs - held and held & pairs:
             kinds = {c["kind"] for c in outcome.result["caveats"]}
             assert kinds & {"speed_direction", "near_tie"}, _describe([(gen, outcome)])
+
+
+def test_a_mass_found_in_a_force_read_as_friction_says_it_may_be_a_drive_force(
+    diagnosed: list[tuple[Generated, Outcome]],
+) -> None:
+    # the generator's inertia traces are a drive's force read as friction (the default)
+    named = [o for _, o in diagnosed if o.named == "inertia"]
+    assert named  # the premise
+    for outcome in named:
+        assert "drive_force" in {c["kind"] for c in outcome.result["caveats"]}
