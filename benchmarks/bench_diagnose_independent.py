@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import subprocess
 import sys
 import tempfile
@@ -36,6 +37,7 @@ from indepgen import (
     CATALOGUE,
     UNKNOWN,
     baseline,
+    dwell_gain,
     make_trace,
     median_standstill,
     parameter_error,
@@ -121,6 +123,11 @@ def run_one(
         "seconds": outcome.seconds,
         # what the trace could not tell apart, as the diagnosis says it
         "caveats": [c["kind"] for c in outcome.result.get("caveats", [])],
+        # each kept effect's 95 % intervals, and what none rules out on this trace
+        "intervals": {
+            e["effect"]: e.get("intervals_95", {}) for e in outcome.result.get("effects") or []
+        },
+        "detection_limits": outcome.result.get("detection_limits"),
     }
     return row
 
@@ -218,6 +225,23 @@ def _not_held(rows: list[dict[str, Any]]) -> str:
     return f"{traces}/{len(rows)}" + (f" ({which})" if which else "")
 
 
+def _coverage(rows: list[dict[str, Any]]) -> str:
+    """Intervals holding the truth over all the rows, and by effect."""
+    by: Counter[str] = Counter()
+    held: Counter[str] = Counter()
+    for r in rows:
+        for effect in r.get("intervals") or {}:
+            single = {**r, "intervals": {effect: r["intervals"][effect]}}
+            inside, total = covered(single)
+            held[effect] += inside
+            by[effect] += total
+    inside, total = sum(held.values()), sum(by.values())
+    if not total:
+        return "none given"
+    each = ", ".join(f"{k} {held[k]}/{by[k]}" for k in sorted(by))
+    return f"{inside}/{total} ({inside / total:.0%}; {each})"
+
+
 def _times(seconds: list[float]) -> str:
     """Median, 90th percentile and worst time, and how many took over 15 s and 60 s."""
     if not seconds:
@@ -229,6 +253,29 @@ def _times(seconds: list[float]) -> str:
         f"{max(seconds):.1f} s; over 15 s: {over[15.0]}/{len(seconds)}, over 60 s: "
         f"{over[60.0]}/{len(seconds)}"
     )
+
+
+def covered(row: dict[str, Any]) -> tuple[int, int]:
+    """How many of the intervals given for effects the trace holds contain the truth, of
+    how many (the truth's parameters by the same names; a dwell gain's after the trace's
+    median standstill too)."""
+    truth = {name: dict(params) for name, params in row["truth"]}
+    inside = total = 0
+    for effect, bounds in (row.get("intervals") or {}).items():
+        if effect not in truth:
+            continue
+        want = dict(truth[effect])
+        if effect == "dwell_time" and "median_standstill_s" in want:
+            want["gain_after_median_dwell"] = dwell_gain(want, want["median_standstill_s"])
+        for name, (lo, hi) in bounds.items():
+            if name in want and name != "median_dwell_s":
+                value = want[name]
+                if name == "phase_rad":  # on the turn of the interval's middle
+                    middle = 0.5 * (lo + hi)
+                    value = middle + math.remainder(value - middle, 2 * math.pi)
+                total += 1
+                inside += int(lo <= value <= hi)
+    return inside, total
 
 
 def table(rows: list[dict[str, Any]]) -> str:
@@ -258,6 +305,7 @@ def table(rows: list[dict[str, Any]]) -> str:
         + _count(unknown, lambda r: r["named"] == "unknown"),
         f"- pairs in the right order: {_count(pairs, lambda r: r.get('pair_in_order'))}",
         f"- caveats: {_caveats(catalogue + pairs)}",
+        f"- 95 % intervals holding the truth: {_coverage(catalogue + pairs)}",
         f"- timeouts: {_count(rows, lambda r: r['status'] == 'timeout')}, errors: "
         + _count(rows, lambda r: r["status"].startswith("error")),
         f"- time per diagnosis: {_times(seconds)}",

@@ -161,15 +161,33 @@ def config_hash(path: str | Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+def why(text: str) -> dict[str, Any]:
+    """Field metadata: one line on why the key exists and why its default is what it is
+    (listed in docs/config.md); combine with a check, ``in_range(0, 1) | why("...")``."""
+    return {"why": text}
+
+
+def key(default: Any, check: dict[str, Any], reason: str) -> Any:
+    """A config field with its ``default``, its ``check`` (:func:`in_range`, ...) and the
+    one line of why (:func:`why`)."""
+    return dataclasses.field(default=default, metadata=check | why(reason))
+
+
 def parse_section(doc: Mapping[str, Any], path: str | Path, section: str, cls: type[T]) -> T:
     """Build dataclass ``cls`` from ``doc[section]``, validating keys, types and values.
 
-    A missing section is allowed when every field of ``cls`` has a default.
+    A missing section is allowed when every field of ``cls`` has a default. A field whose
+    type is itself a config dataclass is a sub-section, ``[section.field]`` in TOML.
     """
-    table = doc.get(section, {})
+    return _parse_table(doc.get(section, {}), str(path), section, cls)
+
+
+def _parse_table(table: Any, where: str, section: str, cls: type[T]) -> T:
+    """:func:`parse_section` of one table (``section``: its dotted name, for messages)."""
+    if not isinstance(table, Mapping):
+        raise ConfigError(where, section, "must be a [section] table")
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
-    where = str(path)
     for key in table:
         if key not in fields:
             raise ConfigError(
@@ -181,6 +199,9 @@ def parse_section(doc: Mapping[str, Any], path: str | Path, section: str, cls: t
         if name not in table:
             if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
                 raise ConfigError(where, key, "missing required key")
+            continue
+        if is_section(hints[name]):
+            values[name] = _parse_table(table[name], where, key, hints[name])
             continue
         cap = f.metadata.get("max_items")
         if cap is not None and isinstance(table[name], list) and len(table[name]) > cap:
@@ -213,6 +234,11 @@ def _numeric(raw: Any) -> bool:
     """Whether ``raw`` is a number or a non-empty array of numbers (booleans are not)."""
     items = raw if isinstance(raw, list) and raw else [raw]
     return all(is_number(x) for x in items)
+
+
+def is_section(hint: Any) -> bool:
+    """Whether a field of this type is a sub-section (a config dataclass)."""
+    return isinstance(hint, type) and dataclasses.is_dataclass(hint)
 
 
 def _coerce(value: Any, hint: Any, where: str, key: str) -> Any:

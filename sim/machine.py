@@ -149,8 +149,8 @@ class CspAxis:
         self._rng = np.random.default_rng(m.noise_seed)
         self._stream: ExtensionStream | None = None
         if machine.effect is not None:
-            gms = _gms_of(s) if machine.effect.BASIS_READS_GMS else None
-            self._stream = ExtensionStream([machine.effect], cycle_period_s, gms=gms)
+            # every effect gets the guide's GMS (0.2-0.4 s): one on the elements needs it
+            self._stream = ExtensionStream([machine.effect], cycle_period_s, gms=_gms_of(s))
         self.reset()
 
     def reset(self) -> None:

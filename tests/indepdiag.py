@@ -99,3 +99,18 @@ def pair_in_order(gen: Generated, outcome: Outcome) -> bool:
         and small in ranked
         and ranked.index(big) < ranked.index(small)
     )
+
+
+def scaled(name: str, params: dict[str, float], factor: float) -> dict[str, float]:
+    """``params`` of the effect ``name`` with its size (its main parameter, as the
+    generator sizes it) times ``factor``: ``ratio - 1`` for stribeck, ``1 / cutoff`` for
+    sensor_lowpass (a lower cut-off is a larger filter), the parameter itself otherwise."""
+    key = MAIN_PARAMETER[name]
+    out = dict(params)
+    if key == "ratio":
+        out[key] = 1.0 + (params[key] - 1.0) * factor
+    elif name == "sensor_lowpass":
+        out[key] = params[key] / factor
+    else:
+        out[key] = params[key] * factor
+    return out

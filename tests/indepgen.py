@@ -66,6 +66,7 @@ __all__ = [
     "parameter_error",
     "play_operator",
     "velocity_level",
+    "with_effect",
     "write_csv",
 ]
 
@@ -330,6 +331,39 @@ def make_trace(
         noise_N = signal.sosfiltfilt(sos, noise_N)
         noise_N *= noise / np.std(noise_N)
     effects, expected = _effects_for(case, truth, np.random.default_rng([seed, CASES.index(case)]))
+    return _generated(case, seed, truth, noise, quantisation, noise_N, effects, expected)
+
+
+def with_effect(seed: int, name: str, params: dict[str, float]) -> Generated:
+    """The seed's effect-free trace (the same motion, baseline and noise as every case of
+    that seed) with one catalogue effect of the given parameters (spec names, SI units;
+    other keys are ignored): to check what a diagnosis says it would have revealed.
+
+    Parameters
+    ----------
+    seed : int
+        The trace's seed.
+    name : str
+        One of ``CATALOGUE``.
+    params : dict of str to float
+        The effect's parameters.
+
+    Returns
+    -------
+    Generated
+        The trace; ``case`` is ``name``, ``expected`` too.
+    """
+    if name not in CATALOGUE:
+        raise ValueError(f"unknown effect {name!r}; choose from {', '.join(CATALOGUE)}")
+    truth, noise, quantisation, noise_N = baseline(seed)
+    effect: Effect = (name, {k: float(v) for k, v in params.items()})
+    return _generated(name, seed, truth, noise, quantisation, noise_N, (effect,), name)
+
+
+def _generated(
+    case: str, seed: int, truth: Truth, noise: float, quantisation: float,
+    noise_N: np.ndarray, effects: tuple[Effect, ...], expected: str,
+) -> Generated:  # fmt: skip
     force = friction(truth, effects) + noise_N
     return Generated(
         case=case,

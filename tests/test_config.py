@@ -163,3 +163,32 @@ def test_contact_wider_than_the_model_allows_is_refused(
     path, line = _run_bad(tmp_path, text, capsys)
     assert str(path) in line and "stand.ball_loads_N" in line
     assert "contact ellipse" in line and "outside the Hertz model" in line
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "reason"),
+    [
+        (
+            "[diagnosis.selection]\nmargin = 2.0\n",
+            "diagnosis.selection.margin",
+            "must be in [0, 1]",
+        ),
+        ("[diagnosis]\nselection = 3\n", "diagnosis.selection", "must be a [section] table"),
+        ("[diagnosis.intervals]\nlevl = 0.9\n", "diagnosis.intervals.levl", "unknown key"),
+    ],
+)
+def test_a_sub_section_is_read_and_refused_by_its_dotted_key(
+    tmp_path: Path, text: str, key: str, reason: str
+) -> None:
+    from gms_comp.errors import ConfigError
+    from gms_comp.measured.diagnosis.config import load_diagnosis_config
+
+    good = tmp_path / "good.toml"
+    good.write_text("[diagnosis]\nn_blocks = 30\n[diagnosis.selection]\nmargin = 0.1\n")
+    cfg = load_diagnosis_config(good)
+    assert cfg.n_blocks == 30 and cfg.selection.margin == 0.1
+    assert cfg.selection.small_margin == 0.01  # the rest at their defaults
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text)
+    with pytest.raises(ConfigError, match=re.escape(key) + ".*" + re.escape(reason)):
+        load_diagnosis_config(bad)

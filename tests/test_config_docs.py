@@ -5,14 +5,15 @@ from __future__ import annotations
 import dataclasses
 import json
 import tomllib
+import typing
 from pathlib import Path
 
 import pytest
 
 from firmware_bridge.settings import load_can_config
 from gms_comp.app.cli import main
-from gms_comp.app.commands.config import SECTIONS, keys, to_markdown, unit_of
-from gms_comp.config import KNOWN_SECTIONS
+from gms_comp.app.commands.config import SECTIONS, all_sections, keys, to_markdown, unit_of
+from gms_comp.config import KNOWN_SECTIONS, is_section
 from gms_comp.measured.diagnosis.run import DiagnosisConfig, load_diagnosis_config
 from gms_comp.physics.config import load_ball_config
 from gms_comp.tables.reduction import TableConfig, load_table_config
@@ -34,11 +35,16 @@ def test_doc_is_generated_from_the_code() -> None:
 
 def test_doc_lists_every_key_of_every_section() -> None:
     text = DOC.read_text(encoding="utf-8")
-    for section, cls in SECTIONS.items():
+    for section, cls in all_sections():
         assert f"## [{section}]" in text
         part = text.split(f"## [{section}]")[1].split("\n## ")[0]
+        hints = typing.get_type_hints(cls)
         for f in dataclasses.fields(cls):
+            if is_section(hints[f.name]):  # its own ## [section.sub]
+                continue
             assert f"| `{f.name}` |" in part, f"{section}.{f.name} missing from docs/config.md"
+            if f.metadata.get("why"):  # the why of a key that has one is in its row
+                assert f.metadata["why"] in part, f"{section}.{f.name}: its why"
 
 
 @pytest.mark.parametrize(

@@ -1,5 +1,5 @@
 """The diagnosis on the project's own demo traces (regression, not blind: the blind tests
-on the independent generator are tests/test_diagnosis_independent.py), on real data that
+on the independent generator are tests/test_diagnosis_rates.py), on real data that
 no catalogue entry describes (BRFD: ``unknown``), degenerate traces, and the CLI's
 contract."""
 
@@ -158,11 +158,21 @@ def test_summary_and_html_report(tmp_path: Path, capsys: pytest.CaptureFixture[s
     out = capsys.readouterr().out
     assert "cause: viscous (c = " in out and "N s/m" in out  # the parameter with its unit
     assert "where the baseline is wrong" in out and "gain:" in out
-    for name in ("residual.png", "phases.png", "force.png", "index.html", "extended.table.json"):
+    for name in ("index.html", "extended.table.json"):
         assert (report / name).is_file()
         assert f"wrote {report / name}" in out
+    assert sorted(p.name for p in report.iterdir()) == [
+        "extended.table.json",
+        "index.html",
+        "manifest.json",
+    ]
     page = (report / "index.html").read_text()
-    assert '<img src="phases.png"' in page and "viscous" in page
+    # one self-contained file: every plot embedded, the zoomed views at a reversal and a
+    # break-away among them; the intervals and what the trace rules out
+    assert page.count('<img src="data:image/png;base64,') >= 5 and "viscous" in page
+    assert "At a reversal" in page or "reversal" in page
+    assert "95 % intervals" in page and "What this trace rules out" in page
+    assert "measured.csv" in page and "gms-comp" in page
 
 
 # Traces a diagnosis cannot use, and what the refusal must name.

@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from gms_comp.measured.diagnosis.agreement import CONSISTENCY_STEPS, agreed
 from gms_comp.measured.diagnosis.candidates import Option
+from gms_comp.measured.diagnosis.criterion import CONSISTENCY_STEPS, agreed
 from gms_comp.runtime import effects as fx
 
 

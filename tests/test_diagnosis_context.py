@@ -17,7 +17,7 @@ import pytest
 from indepfriction import friction
 from indepgen import baseline, make_trace
 
-from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.config import DiagnosisConfig, SplitConfig
 from gms_comp.measured.diagnosis.motion import kinematics
 from gms_comp.measured.diagnosis.prepare import held_third, prepare, top_blocks, top_rows_held
 from gms_comp.measured.traces import Trace
@@ -169,10 +169,10 @@ def test_a_held_block_with_the_only_top_speeds_is_trained_on() -> None:
     speed = np.full(block.size, 0.01)
     speed[43] = 0.05  # block 4 (held)
     speed[44] = 0.045  # same block, above 0.8 x the top
-    moved = top_blocks(block, held, speed)
+    moved = top_blocks(block, held, speed, SplitConfig())
     np.testing.assert_array_equal(moved, block == 4)
     speed[51] = 0.041  # block 5 (training) reaches 0.8 x the top
-    assert not np.any(top_blocks(block, held, speed))
+    assert not np.any(top_blocks(block, held, speed, SplitConfig()))
 
 
 def test_fast_rows_only_in_training_are_split_in_time() -> None:
@@ -187,7 +187,7 @@ def test_fast_rows_only_in_training_are_split_in_time() -> None:
     speed, accel = np.full(block.size, 0.001), np.zeros(block.size)
 
     def moved() -> list[int]:
-        return np.flatnonzero(top_rows_held(block, held, speed, accel)).tolist()
+        return np.flatnonzero(top_rows_held(block, held, speed, accel, SplitConfig())).tolist()
 
     speed[32:38] = [0.01, 0.03, 0.05, 0.05, 0.03, 0.01]
     assert moved() == list(range(35, 40))
@@ -235,7 +235,7 @@ def test_the_held_third_follows_the_starts() -> None:
         x = np.round(x / 1e-8) * 1e-8
         kin = kinematics(Trace("synthetic", t, x, np.ones_like(t)), 0.45 / dt)
         still = 0.01 * float(np.max(np.abs(kin.velocity_m_s)))
-        return held_third(third, kin, still, 0.6e-8, 1.5e-8, x)
+        return held_third(third, kin, still, 0.6e-8, 1.5e-8, x, SplitConfig())
 
     assert held([0, 3, 6, 9, 12, 15, 18, 21, 2, 5, 8, 11]) == 2  # 8 / 0 / 4 per third
     assert held([0, 4, 8, 12, 16, 20, 24, 28, 32]) == 1  # 3 / 3 / 3

@@ -16,11 +16,13 @@ from gms_comp.kinematics import Kinematics
 from gms_comp.measured.diagnosis.baseline import fit_baseline
 from gms_comp.measured.diagnosis.basis import FreeBasis
 from gms_comp.measured.diagnosis.candidates import Option, Scorer
-from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.config import DiagnosisConfig, SelectionConfig
 from gms_comp.measured.diagnosis.prepare import prepare
-from gms_comp.measured.diagnosis.sensed import sensed_again
+from gms_comp.measured.diagnosis.refit import sensed_again
 from gms_comp.measured.traces import Trace
 from gms_comp.runtime import effects as fx
+
+RULES = SelectionConfig()
 
 
 def test_the_elements_fitted_through_a_kept_low_pass_fit_down_to_the_noise() -> None:
@@ -32,12 +34,12 @@ def test_the_elements_fitted_through_a_kept_low_pass_fit_down_to_the_noise() -> 
     trace = Trace("sensed", gen.time_s, gen.position_m, gen.force_N)
     blind = fit_baseline(prepare(trace, "friction", None, cfg), cfg, None)
     kept = [Option(fx.SensorLowpass, {"cutoff_Hz": truth["cutoff_Hz"], "order": truth["order"]})]
-    again = sensed_again(blind, kept)
-    assert Scorer(blind.parts, kept).heldout_rms_N > 1.5 * gen.noise_N
-    assert Scorer(again.parts, kept).heldout_rms_N < 1.05 * gen.noise_N
+    again = sensed_again(blind, kept, RULES)
+    assert Scorer(blind.parts, kept, RULES).heldout_rms_N > 1.5 * gen.noise_N
+    assert Scorer(again.parts, kept, RULES).heldout_rms_N < 1.05 * gen.noise_N
     assert isinstance(again.basis, FreeBasis) and again.basis.sensed is None  # the design filters
     # without a filter kept nothing is fitted again
-    assert sensed_again(blind, [Option(fx.Offset, {})]) is blind
+    assert sensed_again(blind, [Option(fx.Offset, {})], RULES) is blind
 
 
 def test_a_sensed_basis_passes_its_element_columns_through_the_filter() -> None:

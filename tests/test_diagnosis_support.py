@@ -6,6 +6,9 @@ import numpy as np
 from scipy import optimize
 
 from gms_comp.measured.diagnosis.candidates import where_acting
+from gms_comp.measured.diagnosis.config import SelectionConfig
+
+RULES = SelectionConfig()
 
 
 def _peaks_with_tails(tail: float) -> tuple[np.ndarray, np.ndarray]:
@@ -24,7 +27,7 @@ def test_a_low_tail_is_not_where_the_effect_acts() -> None:
     # the tail holds a good part of the energy: by energy alone it would be in
     tail_share = np.sum(values[~in_peak] ** 2) / np.sum(values**2)
     assert tail_share > 0.15
-    acting = where_acting(values)
+    acting = where_acting(values, RULES)
     assert not acting[~in_peak].any()
     # the peaks down to a tenth of their height
     assert np.array_equal(acting[in_peak], values[in_peak, 0] >= 0.1)
@@ -33,8 +36,8 @@ def test_a_low_tail_is_not_where_the_effect_acts() -> None:
 def test_without_a_tail_the_tops_of_the_peaks() -> None:
     with_tail, in_peak = _peaks_with_tails(0.05)
     without, _ = _peaks_with_tails(0.0)
-    acting = where_acting(without)
-    assert not (acting & ~where_acting(with_tail)).any()  # no more than with the tail
+    acting = where_acting(without, RULES)
+    assert not (acting & ~where_acting(with_tail, RULES)).any()  # no more than with the tail
     assert acting[in_peak & (without[:, 0] >= 0.5)].all()
 
 
@@ -43,13 +46,13 @@ def test_a_broad_column_acts_where_it_holds_most_of_its_energy() -> None:
     # fraction f of the samples where it is largest; 90 % needs f = 0.596
     f = optimize.brentq(lambda f: f + np.sin(np.pi * f) / np.pi - 0.9, 0.0, 1.0)
     values = np.sin(np.linspace(0.0, 200 * np.pi, 20_000, endpoint=False))[:, None]
-    share = np.count_nonzero(where_acting(values)) / values.shape[0]
+    share = np.count_nonzero(where_acting(values, RULES)) / values.shape[0]
     assert abs(share - f) < 0.005
 
 
 def test_no_rows_and_a_zero_column_act_nowhere() -> None:
-    assert where_acting(np.zeros((0, 1))).size == 0
-    assert not where_acting(np.zeros((50, 2))).any()
+    assert where_acting(np.zeros((0, 1)), RULES).size == 0
+    assert not where_acting(np.zeros((50, 2)), RULES).any()
 
 
 def _support_by_full_sort(values: np.ndarray) -> np.ndarray:
@@ -76,4 +79,4 @@ def test_support_is_the_full_sort_s_including_ties() -> None:
         np.exp(-np.arange(20_000) / 400.0)[:, None] * np.sin(np.arange(20_000))[:, None],
     ]
     for values in columns:
-        np.testing.assert_array_equal(where_acting(values), _support_by_full_sort(values))
+        np.testing.assert_array_equal(where_acting(values, RULES), _support_by_full_sort(values))

@@ -12,16 +12,8 @@ from hypothesis import strategies as st
 from scipy import signal
 
 from gms_comp.gms import GmsParams, simulate
-from gms_comp.measured.diagnosis.candidates import (
-    LOCAL_SHARE,
-    Option,
-    Trial,
-    best_held_out,
-    where_acting,
-)
-from gms_comp.measured.diagnosis.selection import local_search
 from gms_comp.runtime import effects as fx
-from gms_comp.runtime.effects import dwell_time, leftover
+from gms_comp.runtime.effects import dwell_time
 
 
 def _ctx(
@@ -238,109 +230,6 @@ def test_ripple_coefficients_round_trip() -> None:
     assert back.phase_rad == pytest.approx(0.7)
 
 
-@pytest.mark.parametrize("periods", [1.6, 2.8, 6.0])
-def test_ripple_grid_finds_a_ripple_of_few_periods_over_the_stroke(periods: float) -> None:
-    """Over a 12 mm stroke (back and forth), a ripple of ``periods`` periods is among the
-    wavelengths the grid tries (within its fine step): 1.6 and 2.8 periods, independent
-    traces' ripples, lay beyond the third of the stroke the grid ended at before."""
-    t, x = _triangle(20000, 6e-3)
-    wavelength = 12e-3 / periods
-    residual = 0.8 * np.sin(2 * np.pi * x / wavelength + 0.4)
-    ctx = _ctx(t, x)
-    left = fx.Leftover.of(residual, ctx.moving > 0)
-    tried = [s["wavelength_m"] for s in fx.PositionRipple.shape_grid(ctx, left, 1e-6)]
-    nearest = min(tried, key=lambda w: abs(np.log(w / wavelength)))
-    assert nearest == pytest.approx(wavelength, rel=0.01)
-    low, high = fx.PositionRipple.shape_bounds(ctx, 1e-6)["wavelength_m"]
-    assert low < wavelength <= high
-
-
-@pytest.mark.parametrize("periods", [12.0, 40.0])
-def test_ripple_wavelength_is_searched_finer_than_its_grid(periods: float) -> None:
-    """A ripple of ``periods`` periods over a 40 mm stroke, its wavelength halfway between
-    two of the grid's fine values: from the grid's best, the search with the ripple's
-    own steps lands within 1e-4 (the phase then moves by under 2 pi x 40 x 1e-4 = 0.03
-    rad over the stroke); the other shapes' 8-30 % steps leave it where the grid put it
-    (position_ripple-124 of the independent generator: 0.17 % off, 0.26 rad over its 30
-    periods, the held-out RMS 30 % above the noise)."""
-    t, x = _triangle(80000, 20e-3, 5e-4)
-    ctx = _ctx(t, x)
-    left = fx.Leftover.of(np.sin(2 * np.pi * x / (40e-3 / periods)), ctx.moving > 0)
-    grid = fx.PositionRipple.shape_grid(ctx, left, 1e-6)
-    # the fine grids of neighbouring scan points share values up to rounding: one of each
-    fine = list(np.exp(np.unique(np.round(np.log([s["wavelength_m"] for s in grid]), 9))))
-    at = int(np.argmin([abs(np.log(w * periods / 40e-3)) for w in fine]))
-    wavelength = math.sqrt(fine[at] * fine[at + 1])
-    noise = np.random.default_rng(3).normal(0.0, 0.2, x.size)
-    residual = 0.8 * np.sin(2 * np.pi * x / wavelength - 1.1) + noise
-
-    def cost(opt: Option) -> float:
-        basis = fx.PositionRipple.basis(ctx, opt.shape)
-        fitted = np.linalg.lstsq(basis, residual, rcond=None)[0]
-        return float(np.sqrt(np.mean((residual - basis @ fitted) ** 2)))
-
-    start = min((Option(fx.PositionRipple, s) for s in grid), key=cost)
-    assert abs(start.shape["wavelength_m"] / wavelength - 1) > 5e-4
-    bounds = fx.PositionRipple.shape_bounds(ctx, 1e-6)
-    steps = fx.PositionRipple.shape_steps(ctx)
-    found, _ = local_search(start, cost, cost(start), bounds, (), steps)
-    assert found.shape["wavelength_m"] == pytest.approx(wavelength, rel=1e-4)
-    coarse, _ = local_search(start, cost, cost(start), bounds)
-    assert coarse.shape == start.shape
-
-
-@given(
-    st.integers(0, 6),
-    st.integers(0, 2**32 - 1),
-    st.booleans(),
-)
-@settings(max_examples=40, deadline=None)
-def test_a_pair_s_gain_is_what_least_squares_on_the_design_and_the_pair_lowers(
-    width: int, seed: int, degenerate: bool
-) -> None:
-    """On every row (fewer than the scan samples), the gain of each pair of columns is
-    the drop of the squared residual from a least-squares fit on the design to one on
-    the design and the pair (numpy's lstsq); a zero or repeated design column changes
-    nothing."""
-    rng = np.random.default_rng(seed)
-    n = 300
-    design = rng.normal(size=(n, width)) * np.geomspace(1e-3, 1e3, width)
-    if degenerate and width >= 2:
-        design[:, 0] = 0.0
-        design[:, 1] = design[:, -1] * 3.0
-    residual = rng.normal(size=n) + design @ rng.normal(size=width)
-    first, second = rng.normal(size=(n, 5)), rng.normal(size=(n, 5))
-    left = fx.Leftover.of(residual, np.ones(n, dtype=bool), design)
-
-    def sse(columns: np.ndarray) -> float:
-        fitted = np.linalg.lstsq(columns, residual, rcond=None)[0]
-        return float(np.sum((residual - columns @ fitted) ** 2))
-
-    expected = [
-        sse(design) - sse(np.column_stack([design, first[:, i], second[:, i]])) for i in range(5)
-    ]
-    assert np.allclose(left.pair_gains(first, second), expected, rtol=1e-7, atol=1e-9)
-
-
-@pytest.mark.parametrize("count", [10, 8000, 8001, 100_000])
-def test_the_scan_reads_blocks_of_consecutive_rows_of_those_it_may_read(count: int) -> None:
-    """Of ``count`` rows it may read (every other row of a longer path), the scan reads
-    all up to ``SCAN_ROWS``; above that about ``SCAN_ROWS`` of them, in runs of
-    ``BLOCK_ROWS`` consecutive ones of those rows, evenly spread."""
-    read = np.zeros(2 * count, dtype=bool)
-    read[1::2] = True
-    rows = leftover.sample_rows(read)
-    assert np.all(read[rows]) and np.all(np.diff(rows) > 0)
-    if count <= leftover.SCAN_ROWS:
-        assert rows.size == count
-        return
-    assert leftover.SCAN_ROWS / 2 <= rows.size <= leftover.SCAN_ROWS
-    at = np.searchsorted(np.flatnonzero(read), rows)
-    starts = at[np.flatnonzero(np.diff(at, prepend=-2) != 1)]
-    assert np.all(starts % leftover.BLOCK_ROWS == 0)
-    assert np.ptp(np.diff(starts)) == 0
-
-
 def test_ripple_form_matches_spec() -> None:
     t = np.linspace(0, 1, 500)
     x = 0.01 * t
@@ -357,54 +246,6 @@ def test_stribeck_form_scales_the_gms_force() -> None:
     ctx = fx.Context.along(t, 0 * t, np.full_like(t, 1e-3), 0 * t, f)
     out = fx.Stribeck(1.5, 1e-3).apply(ctx, f)
     np.testing.assert_allclose(out, 10.0 * (1 + 0.5 * math.exp(-1.0)))
-
-
-def test_a_stribeck_fall_acts_where_it_stops_scaling_the_gms_force() -> None:
-    """Slow moves (1 mm/s) with one fast move (20 mm/s, 2 % of the rows) over a Stribeck
-    speed of 8 mm/s: the bump's column is the GMS force nearly everywhere (most rows
-    by energy); its departure, basis and departure adding up to the GMS force, acts on
-    the fast move alone, few rows by the support rule the diagnosis reads."""
-    n = 5000
-    t = np.arange(n) * 1e-3
-    v = np.full(n, 1e-3)
-    v[2000:2100] = 20e-3
-    x = np.cumsum(v) * 1e-3
-    f = np.full(n, 4.0)
-    ctx = fx.Context.along(t, x, v, 0 * t, f)
-    shape = {"v_s_m_per_s": 8e-3}
-    basis = fx.Stribeck.basis(ctx, shape)[:, 0]
-    departure = fx.Stribeck.departure(ctx, shape)
-    np.testing.assert_allclose(basis + departure, f, rtol=1e-12)
-    assert fx.Viscous.departure(ctx, {}) is None
-    fast = np.zeros(n, dtype=bool)
-    fast[2000:2100] = True
-    acting = where_acting(departure[:, None])  # the rows holding 90 % of its energy
-    assert not np.any(acting & ~fast) and np.count_nonzero(acting) >= 0.85 * fast.sum()
-    # the bump read as the rows it acts on: most of them, not an effect at few rows
-    assert np.count_nonzero(where_acting(basis[:, None])) > 0.8 * n > LOCAL_SHARE * n
-
-
-def test_a_direction_asymmetry_is_told_apart_at_speeds_reached_both_ways() -> None:
-    """Forward up to 10 mm/s, back up to 2 mm/s: only moving rows at 2 mm/s or less
-    (either way) can tell half the speed from a level of the speed; with a second part
-    that moves back at 10 mm/s, every moving row of both; a trace that never moves back
-    has none; the other effects do not restrict the rows."""
-    t = np.linspace(0.0, 1.0, 1001)
-    v = np.where(t < 0.5, 10e-3 * np.sin(2 * np.pi * t), 2e-3 * np.sin(2 * np.pi * t))
-    ctx = fx.Context.along(t, 0 * t, v, 0 * t, 0 * t)
-    moving = ctx.moving != 0.0
-    assert 0 < np.count_nonzero(~moving) < 100
-    (apart,) = fx.DirectionAsymmetry.told_apart([ctx])
-    np.testing.assert_array_equal(apart, moving & (np.abs(v) <= np.max(-v[moving])))
-    assert 0 < np.sum(apart & (v > 0)) < np.sum(moving & (v > 0))
-    assert np.all(apart[moving & (v < 0)])
-    back = fx.Context.along(t, 0 * t, -v[::-1], 0 * t, 0 * t)  # back at 10, forward at 2
-    both = fx.DirectionAsymmetry.told_apart([ctx, back])
-    for c, m in zip((ctx, back), both, strict=True):
-        np.testing.assert_array_equal(m, c.moving != 0.0)
-    forward = fx.Context.along(t, 0 * t, np.clip(v, 0.0, None), 0 * t, 0 * t)
-    assert not np.any(fx.DirectionAsymmetry.told_apart([forward])[0])
-    assert fx.Stribeck.told_apart([ctx]) is None and fx.Offset.told_apart([ctx]) is None
 
 
 def test_drift_limits() -> None:
@@ -580,22 +421,6 @@ def test_dwell_gain_raises_one_element_by_gamma_log_of_the_dwell(back: bool) -> 
     np.testing.assert_allclose(extra[gone], 0.0, atol=1e-9)  # slipped: the plain element
 
 
-def test_a_dwell_gain_along_a_trace_is_its_gain_after_the_median_standstill() -> None:
-    t, x, v = _slide_hold_slide(back=False)
-    ctx = fx.Context.along(t, x, v, 0 * t, 0 * t)
-    effect = fx.DwellTime(0.2, 0.1, 0.2)
-    figures = effect.in_context(ctx)
-    assert figures["median_dwell_s"] == pytest.approx(0.5, abs=1e-9)
-    assert figures["gain_after_median_dwell"] == pytest.approx(0.2 * math.log(6.0), rel=1e-12)
-    moving = fx.Context.along(t[:1000], x[:1000], v[:1000], 0 * t[:1000], 0 * t[:1000])
-    assert effect.in_context(moving) == {}  # no standstill ended: nothing to say
-    assert fx.Offset(1.0).in_context(ctx) == {}
-    # what the diagnosis sizes it by against its least effect (and 0 without a standstill)
-    assert effect.relative_size(ctx) == figures["gain_after_median_dwell"]
-    assert effect.relative_size(moving) == 0.0
-    assert fx.Offset(1.0).relative_size(ctx) is None
-
-
 def test_a_dwell_gain_is_lost_where_the_move_turns_back_before_the_element_slips() -> None:
     """The element of the test above, 1 um on after the rest (less than the (g - 1) d =
     1.4 um of its raised window), then 3 um back: the extra force rises on the way out,
@@ -618,63 +443,3 @@ def test_a_dwell_gain_is_lost_where_the_move_turns_back_before_the_element_slips
     assert restart + out <= turned <= restart + out + back // 2
     assert np.max(extra[restart:turned]) > 0.1  # the ramp on the way out
     assert np.all(extra[turned:] == 0.0)
-
-
-@pytest.mark.parametrize(
-    "effect",
-    [c for c in fx.CATALOGUE.values() if not issubclass(c, fx.FilterEffect)],
-    ids=lambda c: c.name,
-)
-def test_a_basis_said_to_be_the_motion_s_alone_is_the_same_under_any_gms(
-    effect: type[fx.Effect],
-) -> None:
-    # the diagnosis keeps such a basis for every baseline fitted to the trace: the flag
-    # must be right, and an effect that reads the GMS must not say otherwise
-    rng = np.random.default_rng(3)
-    n = 400
-    t = np.arange(n) * 1e-3
-    v = np.repeat(rng.normal(0, 2e-3, n // 40), 40) * (rng.random(n // 40).repeat(40) > 0.3)
-    x, a = np.cumsum(v) * 1e-3, np.gradient(v, t)
-    one = dataclasses.replace(fx.Context.along(t, x, v, a, np.tanh(x / 1e-5)), gms=ELEMENTS)
-    other = dataclasses.replace(
-        one, gms_force_N=3.0 * np.tanh(x / 2e-5) + 0.5, gms=_other_elements(ELEMENTS)
-    )
-    shape = {k: math.sqrt(lo * hi) for k, (lo, hi) in effect.shape_bounds(one, 1e-6).items()}
-    for key in effect.SHAPE:
-        shape.setdefault(key, 1.0)
-    same = np.array_equal(effect.basis(one, shape), effect.basis(other, shape))
-    assert same is not effect.BASIS_READS_GMS
-
-
-def _other_elements(params: GmsParams) -> GmsParams:
-    """Other elements: limits and stiffnesses changed."""
-    return dataclasses.replace(
-        params, limit_N=params.limit_N * 1.7, stiffness_N_per_m=params.stiffness_N_per_m * 0.6
-    )
-
-
-def test_a_trial_fitted_at_zero_gives_way_to_a_local_one_fitted_above_it() -> None:
-    """Of a grid's trials, the best held out is taken, unless it is the design as it was
-    (its effect fitted at zero) acting on many rows: then the best of those fitted above
-    zero that act on few rows, to be judged at their events; else it stays."""
-    n, m = 1000, 2
-
-    def trial(v_s: float, coefficient: float, held_out: float, acting: int) -> Trial:
-        support = np.zeros(n, dtype=bool)
-        support[:acting] = True
-        theta = np.array([1.0, 0.5, coefficient])
-        option = Option(fx.Stribeck, {"v_s_m_per_s": v_s})
-        return Trial(option, held_out, theta, np.zeros(n), lambda: support)
-
-    at_zero = trial(1e-3, 0.0, 1.00, 500)
-    local = trial(7e-3, 0.2, 1.01, 50)
-    local_worse = trial(9e-3, 0.1, 1.03, 40)
-    spread = trial(3e-3, 0.3, 1.02, 600)
-    assert best_held_out(m, [spread, at_zero, local_worse, local]) is local
-    # none fitted above zero acts locally: the best held out
-    assert best_held_out(m, [spread, at_zero]) is at_zero
-    # the best held out fitted above zero, or acting locally itself: kept
-    lower = trial(5e-3, 0.1, 0.99, 600)
-    assert best_held_out(m, [lower, at_zero, local]) is lower
-    local_zero = trial(8e-3, 0.0, 1.00, 30)
-    assert best_held_out(m, [local_zero, local]) is local_zero

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gms_comp.measured.diagnosis import emps
+from gms_comp.app import emps
 from gms_comp.measured.traces import load_trace
 
 EMPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "emps"

@@ -14,12 +14,13 @@ from gms_comp.app.commands.diagnose import _every
 from gms_comp.measured.diagnosis.baseline import fit_baseline, placed_on
 from gms_comp.measured.diagnosis.candidates import Scorer
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
-from gms_comp.measured.diagnosis.prepare import MAX_FITTED_EVERY, prepare
+from gms_comp.measured.diagnosis.prepare import prepare
 from gms_comp.measured.diagnosis.run import diagnose
 from gms_comp.measured.traces import Trace
 
 SEED = 247  # the independent generator draws 4.1 kHz for it
 FAST = DiagnosisConfig(fit_rate_Hz=600.0)
+MAX_FITTED_EVERY = FAST.split.max_fitted_every
 
 
 @functools.cache
@@ -137,10 +138,12 @@ def test_the_judge_of_a_picked_design_is_the_same_design_on_every_sample() -> No
     fitted = fit_baseline(prepared, FAST, None)
     every = prepared.every_sample
     assert every is not None
-    scorer = Scorer(fitted.parts, [], lambda: placed_on(every, fitted).parts)
+    scorer = Scorer(fitted.parts, [], FAST.selection, lambda: placed_on(every, fitted).parts)
     judge = scorer.judge
     assert judge is not scorer
-    alone = Scorer(fitted.parts, [])  # no parts of every sample: judged where fitted
+    alone = Scorer(
+        fitted.parts, [], FAST.selection
+    )  # no parts of every sample: judged where fitted
     assert alone.judge is alone
     assert len(judge.parts[0].part.force_N) == len(trace)
     # the same coefficients fit both (a GMS is rate-independent; the held-out RMS the

@@ -19,6 +19,8 @@ import typing
 from pathlib import Path
 from typing import Any
 
+from gms_comp.config import is_section
+
 DOC = Path(__file__).resolve().parents[1] / "docs" / "limits.md"
 
 SECTIONS = (
@@ -84,6 +86,23 @@ def _default(f: dataclasses.Field[Any]) -> str:
     return "required"
 
 
+def _rows(section: str, cls: type[Any]) -> list[str]:
+    """One row per key of ``cls``, a sub-section's (``[section.sub]``) after it in turn."""
+    hints = typing.get_type_hints(cls)
+    rows = []
+    for f in dataclasses.fields(cls):
+        if is_section(hints[f.name]):
+            rows += _rows(f"{section}.{f.name}", hints[f.name])
+            continue
+        kind = getattr(hints[f.name], "__name__", str(hints[f.name]))
+        kind = str(hints[f.name]) if "[" in str(hints[f.name]) else kind
+        kind = kind.replace("typing.", "")
+        rows.append(
+            f"| `{section}.{f.name}` | {kind} | {_default(f)} | {_range(f, hints[f.name])} |"
+        )
+    return rows
+
+
 def render() -> str:
     """The whole of docs/limits.md, from the code."""
     out = [
@@ -100,15 +119,7 @@ def render() -> str:
         "|---|---|---|---|",
     ]
     for section, module, name in SECTIONS:
-        cls = getattr(importlib.import_module(module), name)
-        hints = typing.get_type_hints(cls)
-        for f in dataclasses.fields(cls):
-            kind = getattr(hints[f.name], "__name__", str(hints[f.name]))
-            kind = str(hints[f.name]) if "[" in str(hints[f.name]) else kind
-            kind = kind.replace("typing.", "")
-            out.append(
-                f"| `{section}.{f.name}` | {kind} | {_default(f)} | {_range(f, hints[f.name])} |"
-            )
+        out += _rows(section, getattr(importlib.import_module(module), name))
     out += [
         "",
         "## Table extensions (catalogue effects)",

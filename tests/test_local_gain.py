@@ -1,12 +1,12 @@
 """An effect that acts on few rows is judged there on what those rows hold above the
-noise (``gain.lowers_locally``), with known answers built from white noise."""
+noise (``criterion.lowers_locally``), with known answers built from white noise."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
-from gms_comp.measured.diagnosis.gain import lowers_locally
+from gms_comp.measured.diagnosis.criterion import lowers_locally
 
 NOISE = 0.13  # N
 
@@ -26,12 +26,12 @@ def test_a_gain_that_takes_most_of_what_stands_above_the_noise_is_kept() -> None
     it), what stands above the noise by 60 %."""
     before, after = _rows(0.6)
     rms0, rms1 = np.sqrt(np.mean(before**2)), np.sqrt(np.mean(after**2))
-    assert 0.05 < 1 - rms1 / rms0 < DiagnosisConfig().local_margin
-    assert lowers_locally(DiagnosisConfig(), before, after, NOISE)
+    assert 0.05 < 1 - rms1 / rms0 < DiagnosisConfig().selection.local_margin
+    assert lowers_locally(DiagnosisConfig().selection, before, after, NOISE)
 
 
 def test_a_gain_that_takes_a_little_or_nothing_is_not() -> None:
-    cfg = DiagnosisConfig()
+    cfg = DiagnosisConfig().selection
     before, after = _rows(0.05)  # significant, but 5 % of the bump: under the margin
     assert not lowers_locally(cfg, before, after, NOISE)
     rng = np.random.default_rng(5)
@@ -43,7 +43,7 @@ def test_a_gain_that_takes_a_little_or_nothing_is_not() -> None:
 
 def test_without_noise_the_margin_is_on_the_rms_itself() -> None:
     """With a noise of 0 the rule is the RMS's own: 15 % lower and significant."""
-    cfg = DiagnosisConfig()
+    cfg = DiagnosisConfig().selection
     rng = np.random.default_rng(1)
     before = rng.normal(0.0, 1.0, 4000)
     assert lowers_locally(cfg, before, 0.80 * before + 0.01 * rng.normal(size=4000), 0.0)

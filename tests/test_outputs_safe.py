@@ -60,13 +60,13 @@ def _table(level: float) -> GmsTable:
 def _fake_report(pause_s: float = 0.0, fail_after: int | None = None) -> Any:
     """A stand-in for the report's plots and page: three files, a pause before each."""
 
-    def write_report(_diagnosis: Any, folder: Path, inputs: Any) -> list[Path]:
+    def write_report(_diagnosis: Any, doc: Any, folder: Path) -> list[Path]:
         written = []
         for i, name in enumerate(("residual.png", "phases.png", "index.html")):
             if fail_after is not None and i == fail_after:
                 raise OSError("disk full")
             time.sleep(pause_s)
-            (folder / name).write_text(f"{name} of {json.dumps(inputs)}")
+            (folder / name).write_text(f"{name} of {json.dumps(doc['inputs'])}")
             written.append(folder / name)
         return written
 
@@ -91,26 +91,26 @@ def _set_state(report: Path, table: Path) -> str:
 def test_a_failure_between_writes_keeps_the_old_set(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import gms_comp.measured.diagnosis.report as report_module
+    import gms_comp.app.report as report_module
 
     trace_a, trace_b = tmp_path / "a.csv", tmp_path / "b.csv"
     trace_a.write_text("a")
     trace_b.write_text("b")
     report, table = tmp_path / "rep", tmp_path / "T.json"
     monkeypatch.setattr(report_module, "write_report", _fake_report())
-    write_report_set(None, report, input_record({"trace": trace_a}), _table(0.1), table)  # type: ignore[arg-type]
+    write_report_set(None, report, input_record({"trace": trace_a}), _table(0.1), table, {})  # type: ignore[arg-type]
     old = {p.name: p.read_bytes() for p in report.iterdir()}
     old_table = table.read_bytes()
     assert _set_state(report, table) == "complete a.csv"
     for fail_after in (0, 1, 2):
         monkeypatch.setattr(report_module, "write_report", _fake_report(fail_after=fail_after))
         with pytest.raises(OSError, match="disk full"):
-            write_report_set(None, report, input_record({"trace": trace_b}), _table(0.2), table)  # type: ignore[arg-type]
+            write_report_set(None, report, input_record({"trace": trace_b}), _table(0.2), table, {})  # type: ignore[arg-type]
         assert {p.name: p.read_bytes() for p in report.iterdir()} == old
         assert table.read_bytes() == old_table  # the new table never sits beside the old set
         assert sorted(p.name for p in tmp_path.iterdir()) == ["T.json", "a.csv", "b.csv", "rep"]
     monkeypatch.setattr(report_module, "write_report", _fake_report())
-    files = write_report_set(None, report, input_record({"trace": trace_b}), _table(0.2), table)  # type: ignore[arg-type]
+    files = write_report_set(None, report, input_record({"trace": trace_b}), _table(0.2), table, {})  # type: ignore[arg-type]
     assert _set_state(report, table) == "complete b.csv"
     assert read_table(table).params.limit_N[0] == 0.2 and files[0] == table
     manifest = json.loads((report / SET_MANIFEST).read_text())
@@ -121,14 +121,14 @@ def test_a_failure_between_writes_keeps_the_old_set(
 KILLER = """
 import sys
 from pathlib import Path
-import gms_comp.measured.diagnosis.report as report_module
+import gms_comp.app.report as report_module
 sys.path.insert(0, {tests!r})
 from test_outputs_safe import _fake_report, _table
 from gms_comp.app.report_set import input_record, write_report_set
 report_module.write_report = _fake_report(pause_s=0.05)
 trace = Path(sys.argv[1])
 write_report_set(None, Path("rep"), input_record({{"trace": trace}}), _table(float(sys.argv[2])),
-                 Path("T.json"))
+                 Path("T.json"), {{}})
 """
 
 

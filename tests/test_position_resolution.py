@@ -11,6 +11,7 @@ from indepgen import baseline, make_trace
 from scipy import signal
 
 from gms_comp.app.commands.diagnose import summary
+from gms_comp.measured.diagnosis.config import SplitConfig
 from gms_comp.measured.diagnosis.encoder import encoder_step, position_resolution
 from gms_comp.measured.diagnosis.motion import dequantised
 from gms_comp.measured.diagnosis.prepare import force_noise, noise_at_rest
@@ -152,6 +153,6 @@ def test_the_force_noise_at_rest_reads_low_passed_noise_the_differences_miss() -
     coloured *= 0.07 / np.std(coloured)
     force = 3.0 * np.sign(v) + coloured  # a level that holds at rest
     assert force_noise(force) < 0.2 * 0.07  # the second differences see little of it
-    assert noise_at_rest(force, x) == pytest.approx(0.07, rel=0.1)
+    assert noise_at_rest(force, x, SplitConfig()) == pytest.approx(0.07, rel=0.1)
     white = 3.0 * np.sign(v) + rng.normal(0.0, 0.07, x.size)
-    assert noise_at_rest(white, x) == pytest.approx(force_noise(white), rel=0.05)
+    assert noise_at_rest(white, x, SplitConfig()) == pytest.approx(force_noise(white), rel=0.05)

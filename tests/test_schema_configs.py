@@ -34,8 +34,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gms_comp.app.cli import main
-from gms_comp.app.commands.config import SECTIONS
-from gms_comp.config import default_config_path, field_range, parse_section, read_toml
+from gms_comp.app.commands.config import SECTIONS, all_sections
+from gms_comp.config import (
+    default_config_path,
+    field_range,
+    is_section,
+    parse_section,
+    read_toml,
+)
 from gms_comp.errors import ConfigError
 
 SCHEMA = settings(
@@ -46,16 +52,19 @@ SCHEMA = settings(
 )
 BASE = read_toml(default_config_path())
 WHERE = "cfg.toml"
+# every section and sub-section (``diagnosis.selection``) with its dataclass
+CLASSES = dict(all_sections())
 FIELDS = [
     pytest.param(section, f.name, id=f"{section}.{f.name}")
-    for section, cls in SECTIONS.items()
+    for section, cls in CLASSES.items()
     for f in dataclasses.fields(cls)
+    if not is_section(typing.get_type_hints(cls)[f.name])
 ]
 HUGE = 10**400
 
 
 def _field(section: str, name: str) -> tuple[type[Any], dataclasses.Field[Any], Any]:
-    cls = SECTIONS[section]
+    cls = CLASSES[section]
     f = next(f for f in dataclasses.fields(cls) if f.name == name)
     return cls, f, typing.get_type_hints(cls)[name]
 
@@ -146,22 +155,48 @@ def outside(section: str, name: str) -> st.SearchStrategy[Any]:
 
 def _doc(section: str, name: str, value: Any) -> dict[str, Any]:
     doc = copy.deepcopy(BASE)
-    doc.setdefault(section, {})[name] = value
+    table = doc
+    for part in section.split("."):
+        table = table.setdefault(part, {})
+    table[name] = value
     return doc
+
+
+def _parse(doc: dict[str, Any], section: str) -> Any:
+    """``section`` (``a.b``: the top section ``a`` parsed, then its ``.b``) as parsed."""
+    top, *inner = section.split(".")
+    obj = parse_section(doc, WHERE, top, SECTIONS[top])
+    for part in inner:
+        obj = getattr(obj, part)
+    return obj
+
+
+def _replaced(obj: Any, path: list[str], name: str, value: Any) -> list[tuple[str, Any]]:
+    """``obj`` with ``path``'s field ``name`` set to ``value``: each rebuilt section from
+    the innermost out, with its dotted prefix below ``obj``."""
+    if not path:
+        return [("", dataclasses.replace(obj, **{name: value}))]
+    rebuilt = _replaced(getattr(obj, path[0]), path[1:], name, value)
+    inner = rebuilt[-1][1]
+    here = dataclasses.replace(obj, **{path[0]: inner})
+    return [(f"{path[0]}." + p if p else f"{path[0]}.", o) for p, o in rebuilt] + [("", here)]
 
 
 def _expected_problem(section: str, name: str, value: Any) -> str | None:
     """The section's own cross-field refusal of ``value`` (computed on the dataclass, not
     through the parser), or None."""
-    cls, _f, hint = _field(section, name)
-    base = parse_section(BASE, WHERE, section, cls)
+    _cls, _f, hint = _field(section, name)
+    top, *inner = section.split(".")
+    base = parse_section(BASE, WHERE, top, SECTIONS[top])
     if hint is float:
         value = float(value)
     elif typing.get_origin(hint) is tuple:
         value = tuple(float(v) for v in value)
-    obj = dataclasses.replace(base, **{name: value})
-    problems = obj.problems() if hasattr(obj, "problems") else []
-    return f"{section}.{problems[0][0]}" if problems else None
+    for prefix, obj in _replaced(base, inner, name, value):  # innermost first, as parsed
+        problems = obj.problems() if hasattr(obj, "problems") else []
+        if problems:
+            return f"{top}.{prefix}{problems[0][0]}"
+    return None
 
 
 @pytest.mark.parametrize(("section", "name"), FIELDS)
@@ -169,15 +204,13 @@ def _expected_problem(section: str, name: str, value: Any) -> str | None:
 @given(data=st.data())
 def test_a_value_in_its_declared_range_is_accepted(section: str, name: str, data: Any) -> None:
     value = data.draw(inside(section, name), label="value")
-    cls = SECTIONS[section]
     expected = _expected_problem(section, name, value)
     if expected is None:
-        parsed = parse_section(_doc(section, name, value), WHERE, section, cls)
-        got = getattr(parsed, name)
+        got = getattr(_parse(_doc(section, name, value), section), name)
         assert got == (tuple(value) if isinstance(value, list) else value)
     else:
         with pytest.raises(ConfigError) as refused:
-            parse_section(_doc(section, name, value), WHERE, section, cls)
+            _parse(_doc(section, name, value), section)
         assert refused.value.key == expected
 
 
@@ -189,7 +222,7 @@ def test_a_value_outside_its_range_or_type_is_refused_in_one_line(
 ) -> None:
     value = data.draw(outside(section, name), label="value")
     with pytest.raises(ConfigError) as refused:
-        parse_section(_doc(section, name, value), WHERE, section, SECTIONS[section])
+        _parse(_doc(section, name, value), section)
     err = refused.value
     key = f"{section}.{name}"
     assert err.path == WHERE and (err.key == key or err.key.startswith(f"{key}[")), err
@@ -199,7 +232,10 @@ def test_a_value_outside_its_range_or_type_is_refused_in_one_line(
 # --- through a file and the command line ---------------------------------------------------
 
 ALL_FIELDS = [
-    (section, f.name) for section, cls in SECTIONS.items() for f in dataclasses.fields(cls)
+    (section, f.name)
+    for section, cls in CLASSES.items()
+    for f in dataclasses.fields(cls)
+    if not is_section(typing.get_type_hints(cls)[f.name])
 ]
 # Whole-config checks (every command's loader, run by `config`): the keys they name.
 WHOLE_CONFIG_KEYS = ("scenario", "compensator", "stand.ball_loads_N", "table.family_loads_N",
@@ -283,7 +319,7 @@ def test_a_mutated_config_file_is_read_or_refused_in_one_line(
 def test_every_number_in_every_section_has_a_finite_declared_range() -> None:
     """The schema is complete: no config number is unbounded (no duration, rate, count or
     seed read from a file can overflow, hang or allocate without bound)."""
-    for section, cls in SECTIONS.items():
+    for section, cls in CLASSES.items():
         hints = typing.get_type_hints(cls)
         for f in dataclasses.fields(cls):
             hint = hints[f.name]

@@ -88,7 +88,9 @@ def diagnose_one(job: FleetJob) -> dict[str, Any]:
         from gms_comp.app.report_set import input_record, write_report_set
 
         inputs = input_record({"trace": job.trace, "config": job.config})
-        row["report"] = [str(p) for p in write_report_set(result, job.report_dir, inputs)]
+        page = {**doc, "trace": job.trace, "config": job.config}
+        files = write_report_set(result, job.report_dir, inputs, doc=page)
+        row["report"] = [str(p) for p in files]
     return row
 
 

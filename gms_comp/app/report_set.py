@@ -47,13 +47,15 @@ def write_report_set(
     inputs: Mapping[str, Any],
     table: GmsTable | None = None,
     table_path: str | Path | None = None,
+    doc: Mapping[str, Any] | None = None,
 ) -> list[Path]:
     """Write the report of ``diagnosis`` into ``folder`` as one set; return the files.
 
     ``inputs`` is :func:`input_record`'s; ``table`` (the extended model) goes to
-    ``table_path`` if given, else into the folder as :data:`TABLE_NAME`.
+    ``table_path`` if given, else into the folder as :data:`TABLE_NAME`; ``doc`` is the
+    diagnosis JSON the page shows (intervals, detection limits, caveats, cross-test).
     """
-    from gms_comp.measured.diagnosis.report import write_report  # matplotlib when asked
+    from gms_comp.app.report import write_report  # matplotlib only when asked for
 
     final = Path(folder)
     named = {name: f"{v['path']} (sha256 {v['sha256'][:12]})" for name, v in inputs.items()}
@@ -67,7 +69,8 @@ def write_report_set(
             target = staged if staged is not None else tmp / TABLE_NAME
             write_table(target, table)
             files[os.path.abspath(outside) if outside is not None else TABLE_NAME] = target
-        files.update((p.name, p) for p in write_report(diagnosis, tmp, named))
+        page = {**(doc if doc is not None else diagnosis.to_json()), "inputs": named}
+        files.update((p.name, p) for p in write_report(diagnosis, page, tmp))
         manifest = {
             "format": REPORT_FORMAT,
             "version": REPORT_VERSION,

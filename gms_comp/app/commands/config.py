@@ -28,7 +28,7 @@ from firmware_bridge.settings import CanConfig, load_can_config
 from gms_comp.app.scaleout import ScaleoutConfig, load_scaleout
 from gms_comp.arguments import input_file, output_file
 from gms_comp.atomic import write_text
-from gms_comp.config import default_config_path, parse_section, read_toml
+from gms_comp.config import default_config_path, is_section, parse_section, read_toml
 from gms_comp.measured.diagnosis.run import DiagnosisConfig, load_diagnosis_config
 from gms_comp.physics.config import BearingConfig, ModelConfig, StandConfig, load_ball_config
 from gms_comp.runtime.observer import CompensatorConfig
@@ -93,6 +93,7 @@ class Key:
     required: bool
     packaged: Any
     accepted: str
+    why: str = ""
 
 
 def unit_of(name: str) -> str:
@@ -138,6 +139,30 @@ def check(path: Path) -> None:
     load_machine(path)  # [machine]'s effect parameters, beyond its own keys
 
 
+def all_sections() -> list[tuple[str, type[Any]]]:
+    """Every section and sub-section (``[diagnosis.selection]``) with its dataclass, in
+    file order."""
+    out: list[tuple[str, type[Any]]] = []
+
+    def add(name: str, cls: type[Any]) -> None:
+        out.append((name, cls))
+        hints = typing.get_type_hints(cls)
+        for f in dataclasses.fields(cls):
+            if is_section(hints[f.name]):
+                add(f"{name}.{f.name}", hints[f.name])
+
+    for section, cls in SECTIONS.items():
+        add(section, cls)
+    return out
+
+
+def _within(obj: Any, dotted: str) -> Any:
+    """The sub-section object at ``dotted`` (``a.b.c``: ``obj.b.c``) below ``obj``."""
+    for name in dotted.split(".")[1:]:
+        obj = getattr(obj, name)
+    return obj
+
+
 def keys(path: str | Path | None = None) -> list[Key]:
     """Every key of every section, with its value in ``path`` (default: the packaged config).
 
@@ -150,29 +175,42 @@ def keys(path: str | Path | None = None) -> list[Key]:
     doc = read_toml(p)
     packaged_doc = doc if p == packaged else read_toml(packaged)
     found = []
-    parsed_sections = {
-        section: parse_section(machine_section(doc), p, section, cls)
-        for section, cls in SECTIONS.items()
+    parsed = {s: parse_section(machine_section(doc), p, s, cls) for s, cls in SECTIONS.items()}
+    packaged_parsed = {
+        s: parse_section(machine_section(packaged_doc), packaged, s, c) for s, c in SECTIONS.items()
     }
     check(p)
-    for section, cls in SECTIONS.items():
-        parsed = parsed_sections[section]
-        packaged_values = parse_section(machine_section(packaged_doc), packaged, section, cls)
+    for section, cls in all_sections():
+        top = section.split(".")[0]
+        values = _within(parsed[top], section)
+        packaged_values = _within(packaged_parsed[top], section)
+        hints = typing.get_type_hints(cls)
+        defaults = cls() if _all_default(cls) else None
         for f in dataclasses.fields(cls):
+            if is_section(hints[f.name]):
+                continue
             required = f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
             found.append(
                 Key(
                     section=section,
                     name=f.name,
-                    value=getattr(parsed, f.name),
+                    value=getattr(values, f.name),
                     unit=unit_of(f.name),
-                    default=None if required else getattr(cls, f.name, None),
+                    default=None if required else getattr(defaults or cls, f.name, None),
                     required=required,
                     packaged=getattr(packaged_values, f.name),
                     accepted=accepted_values(cls, f),
+                    why=f.metadata.get("why", ""),
                 )
             )
     return found
+
+
+def _all_default(cls: type[Any]) -> bool:
+    return all(
+        f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING
+        for f in dataclasses.fields(cls)
+    )
 
 
 def _toml(value: Any) -> str:
@@ -196,7 +234,7 @@ def _toml(value: Any) -> str:
 def _summary_line(cls: type[Any]) -> str:
     """The first docstring line of a section's dataclass, without "The [x] section"."""
     line = (cls.__doc__ or "").strip().splitlines()[0]
-    line = re.sub(r"^The ``\[\w+\]`` section[:.]?\s*", "", line).replace("``", "`")
+    line = re.sub(r"^The ``\[[\w.]+\]`` section[:.]?\s*", "", line).replace("``", "`")
     return line[:1].upper() + line[1:]
 
 
@@ -206,7 +244,7 @@ def to_toml(entries: list[Key], source: str) -> str:
         f"# Complete gms-comp config ({source}): every section and key.",
         "# Reference: docs/config.md (gms-comp config --markdown). SI units throughout.",
     ]
-    for section, cls in SECTIONS.items():
+    for section, cls in all_sections():
         about = _summary_line(cls)
         lines += ["", f"[{section}]" + (f"  # {about}" if about else "")]
         for k in (e for e in entries if e.section == section):
@@ -239,21 +277,24 @@ def to_markdown(entries: list[Key]) -> str:
         "`gms-comp config --defaults` prints a complete config with every default; "
         "`gms-comp config FILE` checks a file the way the commands read it.",
     ]
-    for section, cls in SECTIONS.items():
+    for section, cls in all_sections():
+        mine = [e for e in entries if e.section == section]
+        explained = any(k.why for k in mine)
         lines += [
             "",
             f"## [{section}]",
             "",
             f"{_summary_line(cls)} (read by `{cls.__module__}.{cls.__name__}`)".lstrip(),
             "",
-            "| key | unit | default | accepted |",
-            "| --- | --- | --- | --- |",
+            "| key | unit | default | accepted |" + (" why |" if explained else ""),
+            "| --- | --- | --- | --- |" + (" --- |" if explained else ""),
         ]
-        for k in (e for e in entries if e.section == section):
+        for k in mine:
             default = "*required*" if k.required else _shown(k.default)
             if k.required or k.packaged != k.default:
                 default += f" (Table 1: {_shown(k.packaged)})"
-            lines.append(f"| `{k.name}` | {k.unit or '-'} | {default} | {k.accepted or '-'} |")
+            why = f" {k.why or '-'} |" if explained else ""
+            lines.append(f"| `{k.name}` | {k.unit or '-'} | {default} | {k.accepted or '-'} |{why}")
         together = _cross_key_rule(cls)
         if together:
             lines += ["", f"Checked together: {together}"]
@@ -273,15 +314,24 @@ def _shown(value: Any) -> str:
 
 def to_json(entries: list[Key], source: str) -> dict[str, Any]:
     """The config's values by section (SI units), JSON-ready."""
-    sections: dict[str, dict[str, Any]] = {name: {} for name in SECTIONS}
+    sections: dict[str, Any] = {name: {} for name in SECTIONS}
     for k in entries:
-        sections[k.section][k.name] = list(k.value) if isinstance(k.value, tuple) else k.value
+        table: dict[str, Any] = sections
+        for name in k.section.split("."):
+            table = table.setdefault(name, {})
+        table[k.name] = list(k.value) if isinstance(k.value, tuple) else k.value
     return {"config": source, "sections": sections}
 
 
 def _set_in_file(path: Path, entries: list[Key]) -> int:
     doc: Mapping[str, Any] = read_toml(path)
-    return sum(1 for k in entries if k.name in doc.get(k.section, {}))
+    count = 0
+    for k in entries:
+        table: Any = doc
+        for name in k.section.split("."):
+            table = table.get(name, {}) if isinstance(table, Mapping) else {}
+        count += int(isinstance(table, Mapping) and k.name in table)
+    return count
 
 
 def register(subparsers: Any) -> None:

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from gms_comp.app import emps
 from gms_comp.app.fleet import FleetJob, diagnose_fleet, format_table, report_names
 from gms_comp.app.report_set import input_record, write_report_set
 from gms_comp.app.scaleout import add_cluster_arguments, cli_client
@@ -26,7 +27,6 @@ from gms_comp.atomic import SET_MANIFEST, write_text
 from gms_comp.config import config_hash, default_config_path, read_toml
 from gms_comp.errors import GmsCompError
 from gms_comp.gms import GmsParams
-from gms_comp.measured.diagnosis import emps
 from gms_comp.measured.diagnosis.phases import phase_label
 from gms_comp.measured.diagnosis.result import parameter_text
 from gms_comp.measured.diagnosis.run import Diagnosis, diagnose, load_diagnosis_config
@@ -163,6 +163,7 @@ def run(args: argparse.Namespace) -> int:
     doc["input"] = input_json(trace)
     if validation is not None:
         doc["validation_input"] = input_json(validation)
+    doc["config"] = args.config
     if trace.force_kind == "drive" and kind == "drive":
         doc.update(_benchmark_errors(trace, validation, result))
     if args.closed_loop is not None:
@@ -174,7 +175,12 @@ def run(args: argparse.Namespace) -> int:
     written: list[str] = []
     if args.report:
         files = write_report_set(
-            result, args.report, _inputs(args), extended_table(result, args.trace), args.table
+            result,
+            args.report,
+            _inputs(args),
+            extended_table(result, args.trace),
+            args.table,
+            doc,
         )
         doc["table"] = str(files[0])
         doc["report"] = [str(p) for p in files[1:]]
@@ -236,6 +242,8 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
         if e.get("in_context"):
             figures = ", ".join(parameter_text(k, v) for k, v in e["in_context"].items())
             lines.append(f"        along this trace: {figures}")
+        if e.get("intervals_95"):
+            lines.append(f"        95 % intervals: {_intervals(e)}")
     level = doc.get("extended_slip_level", b["slip_level"])
     base_law = b.get("limit_follows_level", False)
     law = doc.get("extended_limit_follows_level", base_law)
@@ -255,6 +263,14 @@ def summary(doc: Mapping[str, Any], samples: int, kind: str) -> str:
         )
     for caveat in doc.get("caveats", ()):
         lines.append(f"caveat: {caveat['text']}")
+    limits = doc.get("detection_limits") or {}
+    if limits:
+        lines.append(
+            "smallest effects this trace would have revealed (what it rules out where none "
+            "is named):"
+        )
+        for name, figures in limits.items():
+            lines.append(f"  {name}: {_limit(name, figures, doc)}")
     lines.append(
         f"gain: {doc['gain']:.1%} (held-out RMS {doc['baseline_rms_N']:.4g} N -> "
         f"{doc['extended_rms_N']:.4g} N)"
@@ -282,6 +298,31 @@ def _inputs(args: argparse.Namespace) -> dict[str, Any]:
             "closed_loop": args.closed_loop,
         }
     )
+
+
+def _intervals(entry: Mapping[str, Any]) -> str:
+    """An effect's 95 % intervals as text, those that reach a bound said so."""
+    bounded = set(entry.get("interval_at_bound", ()))
+    parts = []
+    for name, (lo, hi) in entry["intervals_95"].items():
+        low, high = parameter_text(name, lo), parameter_text(name, hi)
+        text = f"{low.split(' = ')[0]} {low.split(' = ')[1]} to {high.split(' = ')[1]}"
+        parts.append(text + (" (reaches its bound: the trace does not pin it down)"
+                             if name in bounded else ""))  # fmt: skip
+    return ", ".join(parts)
+
+
+def _limit(name: str, figures: Mapping[str, float], doc: Mapping[str, Any]) -> str:
+    """One effect's detection limit as text: the figure it is told in, its range over the
+    shapes tried, what to record to see smaller ones."""
+    span = (doc.get("detection_limits_range") or {}).get(name, {})
+    told = str(next(iter(span), ""))
+    text = parameter_text(told, figures[told]) if told in figures else ""
+    lo, hi = span.get(told, (0.0, 0.0))
+    if hi > 1.01 * lo:
+        text += f" ({lo:.3g} to {hi:.3g} over the shapes tried)"
+    hint = (doc.get("to_see_smaller") or {}).get(name)
+    return text + (f"; to see smaller: {hint}" if hint else "")
 
 
 def _baseline_table(args: argparse.Namespace) -> GmsParams | None:
@@ -324,7 +365,10 @@ def _run_fleet(args: argparse.Namespace, mapping: Mapping[str, str] | None) -> i
         with cli_client(args) as client:
             fleet = diagnose_fleet(jobs, client=client)
     written = [p for row in fleet["traces"] for p in row.get("report", [])]
-    if args.report:  # the fleet's index, written last: each trace's report is its own set
+    if args.report:  # the overview page, then the fleet's index, written last
+        from gms_comp.app.report import write_overview  # matplotlib only when asked for
+
+        written.append(str(write_overview(fleet, args.report, names)))
         index = {"format": "gms-comp-fleet-report", "version": 1, "traces": [
             {k: row.get(k) for k in ("trace", "status", "report")} for row in fleet["traces"]
         ]}  # fmt: skip

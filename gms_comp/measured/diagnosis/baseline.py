@@ -1,14 +1,12 @@
 """Stage 2: the baseline model, calibrated on the training rows.
 
-The blind baseline is a free NNLS GMS that carries the seed's velocity dependence
-(../shared/spec/physics.md): a sliding level C_v >= 1 above the stick level, reached over
-a transition velocity v_t, in either law of :data:`.slip_level.LAWS`, fitted jointly with
-the element limits (NNLS for each level; the level on a bounded grid, then bounded
-coordinate steps; the kept elements moved off the grid, :func:`refine_knots`, and the
-level stepped again). A trace whose only departure from a GMS is C_v is therefore
-``none``. Given a GMS table (the user's bearing), its level, presliding scale and velocity
-dependence are calibrated instead (:mod:`.basis`): it is the baseline if its held-out RMS
-is within ``table_margin`` of the free GMS's.
+The blind baseline is a free NNLS GMS with the seed's velocity level (a sliding level
+C_v >= 1 above the stick level, reached over v_t; :mod:`.slip_level`), fitted jointly
+with the element limits: NNLS for each level, the level on a bounded grid then bounded
+coordinate steps, the kept elements moved off the grid (:func:`refine_knots`), the level
+stepped again. A trace whose only departure from a GMS is C_v is therefore ``none``.
+Given a GMS table (the user's bearing), it is calibrated instead (:mod:`.basis`) and is
+the baseline if its held-out RMS is within ``table_margin`` of the free GMS's.
 """
 
 from __future__ import annotations
@@ -16,7 +14,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,6 +24,7 @@ from gms_comp.gms import GmsParams
 from gms_comp.measured.diagnosis.basis import (
     FreeBasis,
     Samples,
+    Sensor,
     TableBasis,
     breakaway_grid,
     calibrate_table,
@@ -53,24 +52,20 @@ from gms_comp.measured.diagnosis.slip_level import (
     level_of,
     transition_range,
 )
+from gms_comp.measured.policies import policy
 from gms_comp.runtime import effects as fx
 
 Basis = FreeBasis | TableBasis
 
 # The element grid in two passes: COARSE_ELEMENTS over the whole range of break-aways
-# (position resolution to a tenth of the stroke) find where the limits are; then the
-# configured number of elements over that range, widened by one coarse spacing either
-# side (a coarse grid's spacing of about 5 leaves the presliding curve of an axis with
-# clustered break-aways 1.5-2 x the noise off below 1 mm/s; the dense one within it).
-# A limit below SUPPORT_SHARE of the sum does not count as where the limits are.
+# find where the limits are (a limit below SUPPORT_SHARE of the sum does not count);
+# then the configured number over that range, widened by one coarse spacing either side.
 COARSE_ELEMENTS = 8
 SUPPORT_SHARE = 0.01
 # Then the break-aways of the elements the grid fit keeps are moved off the grid (free
 # knots): coordinate steps in log(break-away) of these sizes, at most KNOT_ROUNDS rounds
-# each, every trial's limits by NNLS on the training rows, inside the grid's range. A true
-# element between grid points is otherwise carried by both, and a dwell's raised limit by
-# neither: on ten independent dwell traces the grid's elements correlated 0.41-0.93 with
-# the truth's dwell force, the moved ones 0.49-0.95; the held-out RMS fell 0.2-8 %.
+# each, inside the grid's range (a true element between grid points is otherwise carried
+# by both, and a dwell's raised limit by neither).
 KNOT_STEPS = (0.2, 0.1, 0.05)
 KNOT_ROUNDS = 6
 # The effect bases a part keeps for the rounds of the selection (about 180 columns of a
@@ -92,12 +87,11 @@ class FittedPart:
         return {}
 
     def effect_basis(self, effect: type[fx.Effect], shape: Mapping[str, float]) -> FloatArray:
-        """``effect``'s basis along this part at ``shape``, read-only and kept (a basis
-        of the motion alone with the part, for every baseline) up to ``BASES_KEPT_BYTES``,
-        the oldest dropped first: the selection scores an effect's grid again in every
-        round and a chosen effect's columns in every filter trial (a dwell column: 15 ms)."""
+        """``effect``'s basis along this part at ``shape``, read-only and kept (a basis of
+        the motion alone with the part, for every baseline) up to ``BASES_KEPT_BYTES``, the
+        oldest dropped first: the selection scores a grid again in every round."""
         key = (effect.name, *sorted(shape.items()))
-        kept = self._bases if effect.BASIS_READS_GMS else self.part.motion_bases
+        kept = self._bases if policy(effect).basis_reads_gms else self.part.motion_bases
         if key not in kept:
             values = effect.basis(self.ctx, shape)
             values.flags.writeable = False
@@ -153,8 +147,7 @@ def _design(part: Part, basis: Basis, drive: bool, nuisance: bool) -> tuple[int,
     """One part's design and how many of its columns are the basis's: the basis's
     columns, the acceleration for a drive force, and with ``nuisance`` a viscous term
     (c v, c >= 0) and an offset of either sign, written after the basis's columns in one
-    array (stacked afterwards, they copied the whole design: 4 of the 17 ms of a slip
-    level's trial)."""
+    array (stacked afterwards, they copied the whole design)."""
     own = ([part.kin.acceleration_m_s2] if drive else []) + (
         [part.kin.velocity_m_s, np.ones(part.kin.velocity_m_s.size)] if nuisance else []
     )
@@ -237,10 +230,8 @@ def fit_baseline(prepared: Prepared, cfg: DiagnosisConfig, table: GmsParams | No
     """The free GMS with its slip level, or the calibrated ``table`` if its held-out RMS
     is within ``cfg.table_margin`` (relative) of the free GMS's; ``info`` holds both RMS
     values and the table's calibrated factors. Its slip level is searched from the grid
-    even where another fit on the same motion is known: stepped from the counts' level,
-    the counts read as motion on the independent generator's effect-free seed 119 (a
-    27 nm encoder) no longer held out better by the margin and were read as measured
-    (and no time was saved at the median, 16.0 s on seeds 244-248)."""
+    even where another fit on the same motion is known (stepped from it, a reading of the
+    encoder's counts lost the margin it holds out by)."""
     free = _free_basis(prepared, cfg.n_elements)
     designs, theta, _ = _fit(prepared, free, nuisance=True)
     free = refine_knots(prepared, free, theta)
@@ -290,12 +281,10 @@ def _free_basis(prepared: Prepared, n_elements: int) -> FreeBasis:
 
 def refine_knots(prepared: Prepared, basis: FreeBasis, theta: FloatArray) -> FreeBasis:
     """``basis`` with the break-aways of the elements that have a limit in ``theta``
-    moved to fit the training rows best (bounded coordinate steps, ``KNOT_STEPS``). The
-    others stay where they are: with a filter in the design (a sensor low-pass) the fit
-    uses elements the unfiltered one left empty (without them, the low-pass's cut-off
-    came out 6.9 Hz, order 4, for 5.1 Hz, order 3, and a reversal transient beside it).
-    As in :func:`fit_free`'s search, a viscous term and an offset are fitted beside the
-    elements (in ``theta`` too) so that they do not bend the break-aways."""
+    moved to fit the training rows best (bounded coordinate steps, ``KNOT_STEPS``); the
+    others stay where they are (a fit through a filter uses elements the unfiltered one
+    left empty). A viscous term and an offset are fitted beside the elements (in
+    ``theta`` too), so that they do not bend the break-aways."""
     n = basis.breakaway_m.size
     knots = basis.breakaway_m.copy()
     active = [int(i) for i in np.flatnonzero(theta[:n] > 0.0)]
@@ -366,6 +355,12 @@ def _baseline(
     )  # fmt: skip
 
 
+def drive_mass(prepared: Prepared, theta: FloatArray, n_gms: int) -> list[fx.Effect]:
+    """A drive force's mass (the coefficient after the GMS's) as an effect; none for a
+    friction force."""
+    return [fx.Inertia(float(theta[n_gms]))] if prepared.drive else []
+
+
 def held_residual(parts: Sequence[FittedPart], predictions: Sequence[FloatArray]) -> FloatArray:
     """What ``predictions`` (one per part) leave on the parts' held-out rows, in order."""
     pairs = zip(parts, predictions, strict=True)
@@ -421,27 +416,18 @@ def rebased_gram(baseline: Baseline, basis: Basis) -> tuple[tuple[FittedPart, ..
     return refit_gms_force(parts, gram.fit(), basis), gram
 
 
-def refine_slip_level(
-    baseline: Baseline, cost: Callable[[tuple[FittedPart, ...]], float]
-) -> FreeBasis | None:
-    """The free basis's slip level, transition velocity and transition shape searched
-    again with ``cost`` (the training RMS with the kept effects present): bounded
-    coordinate steps from the baseline's, or None for a table baseline."""
-    basis = baseline.basis
-    if not isinstance(basis, FreeBasis):
-        return None
-    vmax = max(float(np.max(np.abs(p.kin.velocity_m_s))) for p in baseline.prepared.parts)
-    # with the kept effects present the cap is lifted (a third of the top speed): on the
-    # EMPS ball screw the extended model's level keeps rising above 2 mm/s (capped there,
-    # the training error went from 2.48 % to 2.69 %; at a third, 2.27 % train, 2.96 %)
-    vt_range = transition_range(vmax, np.inf)
-
-    # a level met again (a step back, the vertex's C_v +- step) is not refitted
-    @functools.cache
-    def level_cost(level: Level) -> float:
-        return cost(rebased(baseline, FreeBasis(basis.breakaway_m, *level)))
-
-    best = coordinate_steps(
-        (cost(baseline.parts), level_of(basis)), level_cost, REFINE_STEPS, vt_range
-    )
-    return FreeBasis(basis.breakaway_m, *best[1])
+def fitted_through(baseline: Baseline, sensed: Sensor, names: Sequence[str]) -> Baseline:
+    """``baseline`` (a free GMS) with its knots, slip level (from its own) and limits fitted
+    again with its element columns through ``sensed`` (the kept filters ``names``: elements
+    fitted before a sensor filter was known bend to its lag); the basis kept without
+    ``sensed`` (the design applies the kept filters to every column). The search's viscous
+    and offset columns are not passed through the filter."""
+    assert isinstance(baseline.basis, FreeBasis)
+    prepared = baseline.prepared
+    start = dataclasses.replace(baseline.basis, sensed=sensed)
+    _, theta, _ = _fit(prepared, start, nuisance=True)
+    start = refine_knots(prepared, start, theta)
+    moved = fit_free(prepared, start.breakaway_m, start=start)
+    _, theta, _ = _fit(prepared, moved)
+    info = {**baseline.info, "fitted_through": list(names)}
+    return _baseline(prepared, dataclasses.replace(moved, sensed=None), theta, info)

@@ -1,21 +1,13 @@
-"""The GMS part of the diagnosis baseline: a free NNLS GMS, or a calibrated GMS table.
-
-Either way the baseline's GMS force is linear in a few non-negative coefficients (so the
-catalogue effects are fitted as extra columns of one design):
+"""The GMS part of the baseline: linear in a few non-negative coefficients, so the
+catalogue effects are fitted as extra columns of one design.
 
 - :class:`FreeBasis`: one column per element of a log grid of break-away displacements,
-  the coefficients are the limits W_i (the spec's free NNLS GMS), with the seed's slip
-  level C_v >= 1 reached over a transition velocity (the same for every element).
-
-A Maxwell-slip element with break-away displacement delta = W/k has a force W phi(x, v),
-where phi, the element's normalised output, depends on delta, C_v and v_t only, so with
-those fixed the GMS force is linear in the limits. phi is computed by the project's GMS
-kernel (:func:`gms_comp.gms.simulate`) with one unit element.
-- :class:`TableBasis`: one column, the force of a GMS table (from the ball model of the
-  user's bearing) with its presliding scale and velocity dependence calibrated on the
-  training samples (:func:`calibrate_table`); the coefficient is the level factor on
-  every W_i. Its parameters mean something to the user: how far the bearing's friction
-  is from the model's, in level, presliding length and slip level.
+  its coefficient the element's limit W_i, the seed's slip level C_v >= 1 reached over a
+  transition velocity shared by all (an element's force is W phi(x, v), phi its unit
+  output, computed by the project's GMS kernel).
+- :class:`TableBasis`: one column, a GMS table's force (the user's bearing) with its
+  presliding scale and velocity dependence calibrated on the training samples; the
+  coefficient is the level factor on every W_i, its parameters meaningful to the user.
 """
 
 from __future__ import annotations

@@ -1,10 +1,9 @@
 """Stage 3: the catalogue effects as candidate extensions of the baseline's design.
 
-An :class:`Option` is a catalogue effect with its shape fixed: extra design columns (an
-additive effect, with its coefficient bound from the catalogue) or a filter of every
-column (a sensor low-pass, a drive lag). A :class:`Scorer` holds the design of the
-effects chosen so far and scores one more option on it by held-out RMS, reusing the
-design's training Gram matrix for additive options (:class:`~.design.GramDesign`).
+An :class:`Option` is a catalogue effect with its shape fixed: extra design columns (the
+coefficients' bound from its policy) or a filter of every column. A :class:`Scorer` holds
+the design of the effects chosen so far and scores one more option on it by held-out RMS
+(its training Gram matrix reused, :class:`~.design.GramDesign`).
 """
 
 from __future__ import annotations
@@ -16,39 +15,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gms_comp.measured.diagnosis.baseline import FittedPart
+from gms_comp.measured.diagnosis.config import SelectionConfig
 from gms_comp.measured.diagnosis.design import (
     BATCH_COLUMNS,
     BoolArray,
     Columns,
     FloatArray,
     GramDesign,
+    IntArray,
     PartDesign,
     every_row,
     rms,
     runs,
 )
+from gms_comp.measured.policies import Leftover, Policy, policy
 from gms_comp.runtime import effects as fx
 
-# Where an option acts (where an effect on few samples is judged): the fewest held-out
-# samples that hold this share of its columns' energy, and of those the ones at least
-# SUPPORT_LEVEL of the peak. Counted by magnitude alone (from 1e-3 of the peak), a dwell
-# gain's raised elements that had not slipped when a move ended held a few per cent of
-# their stretch through the standstill after it, and that tail took most of the held-out
-# support (6210 samples for 456 where the force was); by energy alone, a raised element
-# that never slipped again through a run of small reversals held 5 % of the peak for
-# thousands of samples (held-out support 4043 samples where the truth's has 247; the
-# true dwell's shape then lowered the RMS there by 29 %, z 2.1; on the 10 % level 40 %,
-# z 4.7).
-SUPPORT_ENERGY = 0.9
-SUPPORT_LEVEL = 0.1
-# An effect acting on less than this share of the held-out samples is judged where it
-# acts (acts_locally).
-LOCAL_SHARE = 0.25
-# An effect that acts at few events is judged on all of them, each by a fit without it
-# (:meth:`Scorer.left_out`): rows where it acts less than EVENT_GAP_S apart are one
-# event, and the events are dealt into at most LEFT_OUT_FOLDS folds.
-EVENT_GAP_S = 0.02
-LEFT_OUT_FOLDS = 10
 # The columns of this many options are kept by a Scorer (one round of the selection).
 COLUMNS_KEPT = 32
 
@@ -59,6 +41,11 @@ class Option:
 
     effect: type[fx.Effect]
     shape: dict[str, float]
+
+    @property
+    def policy(self) -> type[Policy]:
+        """The effect's diagnosis policy."""
+        return policy(self.effect)
 
     @property
     def is_filter(self) -> bool:
@@ -73,12 +60,12 @@ class Option:
     def columns(self, fp: FittedPart, filters: Sequence[Option] = ()) -> Columns:
         """The additive option's columns on ``fp``, through the chosen ``filters``."""
         values = through(filters, fp.effect_basis(self.effect, self.shape), fp.ctx.sample_time_s)
-        return Columns(values, np.full(values.shape[1], self.effect.COEFFICIENT_LOWER))
+        return Columns(values, np.full(values.shape[1], self.policy.coefficient_lower))
 
     def acting(self, fp: FittedPart, columns: Columns) -> FloatArray:
         """Values along ``fp`` whose large rows are where the option acts: its
         ``columns`` there, or the effect's own departure from the baseline."""
-        departure = self.effect.departure(fp.ctx, self.shape)
+        departure = self.policy.departure(fp.ctx, self.shape)
         return columns.values if departure is None else departure[:, None]
 
     def with_value(self, key: str, value: float) -> Option:
@@ -96,8 +83,9 @@ def through(filters: Sequence[Option], values: FloatArray, sample_time_s: float)
 def options(effect: type[fx.Effect], scorer: Scorer, presliding_m: float) -> list[Option]:
     """The effect's shape grid on the main part as options, searched in what the design
     of ``scorer`` leaves (:attr:`Scorer.leftover`) where the effect reads it."""
-    left = scorer.leftover if effect.READS_LEFTOVER else fx.Leftover.empty()
-    grid = effect.shape_grid(scorer.parts[0].ctx, left, presliding_m)
+    rules = policy(effect)
+    left = scorer.leftover if rules.reads_leftover else Leftover.empty()
+    grid = rules.shape_grid(scorer.parts[0].ctx, left, presliding_m)
     return [Option(effect, s) for s in grid]
 
 
@@ -126,7 +114,7 @@ class Trial:
     @functools.cached_property
     def support(self) -> BoolArray:
         """The held-out rows where the option acts, worked out when first asked (of a
-        grid's trials, the best one's alone is: 644 supports took 1.9 s of a trace)."""
+        grid's trials, the best one's alone is)."""
         return self.acting()
 
 
@@ -139,6 +127,8 @@ class Scorer:
         The baseline's parts (their path contexts carry the GMS force to scale).
     chosen
         The options kept so far.
+    rules
+        Where an option acts and how its events are left out (``[diagnosis.selection]``).
     every_sample
         When the parts are every k-th sample of the trace: the same parts along every
         sample (made when first asked), where an effect at few events is judged
@@ -146,10 +136,11 @@ class Scorer:
     """
 
     def __init__(
-        self, parts: Sequence[FittedPart], chosen: Sequence[Option],
+        self, parts: Sequence[FittedPart], chosen: Sequence[Option], rules: SelectionConfig,
         every_sample: Callable[[], Sequence[FittedPart]] | None = None,
     ) -> None:  # fmt: skip
         self._every_sample = every_sample
+        self.rules = rules
         self.parts = tuple(parts)
         self.chosen = tuple(chosen)
         self.filters = [o for o in chosen if o.is_filter]
@@ -165,26 +156,24 @@ class Scorer:
     @functools.cached_property
     def judge(self) -> Scorer:
         """The scorer on every sample of the trace (the same design), where an effect at
-        few events is judged by :meth:`left_out`; this one when the parts are every
-        sample. Picked, a dwell gain at the starts of dwell_time-248 of the independent
-        generator (3.6 kHz, 0.09 for a noise of 2.7 % of the level) dropped from z 5.7
-        to 2.1-3.0 on every 2nd sample (3.9-5.9 on the other half), and was not kept."""
+        few events is judged by :meth:`left_out` (picked, a dwell gain's z at its few
+        starts halves); this one when the parts are every sample."""
         if self._every_sample is None:
             return self
-        return Scorer(self._every_sample(), self.chosen)
+        return Scorer(self._every_sample(), self.chosen, self.rules)
 
     def model(self, index: int = 0) -> FloatArray:
         """The current design's force on part ``index``."""
         return self.designs[index].columns.values @ self.theta
 
     @functools.cached_property
-    def leftover(self) -> fx.Leftover:
+    def leftover(self) -> Leftover:
         """What the design leaves on the main part's training rows in motion, with the
         design's basis there (for a grid found from it: a ripple's wavelengths)."""
         fp = self.parts[0]
         residual = fp.part.force_N - self.model()
         read = fp.part.train & (fp.ctx.moving > 0)
-        return fx.Leftover.of(residual, read, self.designs[0].columns.values)
+        return Leftover.of(residual, read, self.designs[0].columns.values)
 
     def score(self, opt: Option) -> Trial:
         """``opt`` added to the chosen options, fitted on training, scored held out."""
@@ -214,7 +203,7 @@ class Scorer:
             def support(opt: Option = opt, extra: list[Columns] = extra) -> BoolArray:
                 pairs = zip(extra, self.parts, strict=True)
                 return np.concatenate(
-                    [where_acting(opt.acting(fp, e)[fp.part.held]) for e, fp in pairs]
+                    [where_acting(opt.acting(fp, e)[fp.part.held], self.rules) for e, fp in pairs]
                 )
 
             out.append(Trial(opt, rms(held), theta, held, support))
@@ -243,8 +232,7 @@ class Scorer:
 
     def extra(self, opt: Option) -> list[Columns]:
         """The additive ``opt``'s columns on each part, through the chosen filters (the
-        last ``COLUMNS_KEPT`` options' kept: a shape is scored, then judged, or settled
-        and then costed, and an effect's columns may take 15 ms each)."""
+        last ``COLUMNS_KEPT`` options' kept: a shape is scored, then judged)."""
         key = (opt.effect.name, *sorted(opt.shape.items()))
         if key not in self._columns:
             if len(self._columns) >= COLUMNS_KEPT:
@@ -265,21 +253,26 @@ class Scorer:
         """Residuals without and with ``trial``'s option at every row where it acts
         (training and held out, every part, in time order), each event's from the design
         fitted on the training rows without it (:meth:`~.design.GramDesign.left_out`;
-        an event: rows where it acts less than ``EVENT_GAP_S`` apart). An effect at a
+        an event: rows where it acts less than ``event_gap_s`` apart). An effect at a
         few events (a dwell gain at a few starts) is judged on all of them, none by a fit
         that saw it; the held-out rows alone may hold none of them."""
         extra = self.extra(trial.option)
+        return self.gram.left_out(extra, self.events(trial), self.rules.left_out_folds)
+
+    def events(self, trial: Trial) -> list[list[IntArray]]:
+        """The rows (each part's, in time order) where ``trial``'s option acts, in events:
+        rows less than ``event_gap_s`` apart are one."""
         events = []
-        for e, fp in zip(extra, self.parts, strict=True):
-            gap = max(1, round(EVENT_GAP_S / max(fp.ctx.sample_time_s, 1e-12)))
-            events.append(runs(where_acting(trial.option.acting(fp, e)), gap))
-        return self.gram.left_out(extra, events, LEFT_OUT_FOLDS)
+        for e, fp in zip(self.extra(trial.option), self.parts, strict=True):
+            gap = max(1, round(self.rules.event_gap_s / max(fp.ctx.sample_time_s, 1e-12)))
+            events.append(runs(where_acting(trial.option.acting(fp, e), self.rules), gap))
+        return events
 
     def told_apart(self, opt: Option) -> BoolArray | None:
         """The held-out rows (every part's, in order) whose motion can tell ``opt``'s
-        effect from the others (:meth:`~gms_comp.runtime.effects.base.Effect.told_apart`),
+        effect from the others (:meth:`~gms_comp.measured.policies.Policy.told_apart`),
         or None: every row."""
-        masks = opt.effect.told_apart([fp.ctx for fp in self.parts])
+        masks = opt.policy.told_apart([fp.ctx for fp in self.parts])
         if masks is None:
             return None
         return np.concatenate([m[fp.part.held] for m, fp in zip(masks, self.parts, strict=True)])
@@ -307,8 +300,7 @@ def fit_on(
     """Coefficients and training RMS of the design of ``chosen`` on ``parts``, whose
     base columns through ``chosen``'s filters ``base`` holds (:func:`base_gram`): the
     additive options' columns added to its Gram matrix, not the whole design built
-    again (with a filter chosen, each trial of the refit's level search filtered every
-    column 4 times: 30 s of 58 s on sensor_lowpass-124 of the independent generator)."""
+    (and filtered) again for every trial of the refit's level search."""
     filters = [o for o in chosen if o.is_filter]
     additive = [o for o in chosen if not o.is_filter]
     if not additive:
@@ -318,30 +310,29 @@ def fit_on(
     return base.trial_train_rms(extra)
 
 
-def acts_locally(trial: Trial) -> bool:
-    """Whether ``trial``'s option acts on less than ``LOCAL_SHARE`` of the held-out rows."""
-    return bool(np.count_nonzero(trial.support) < LOCAL_SHARE * trial.support.size)
+def acts_locally(trial: Trial, rules: SelectionConfig) -> bool:
+    """Whether ``trial``'s option acts on less than ``local_share`` of the held-out rows."""
+    return bool(np.count_nonzero(trial.support) < rules.local_share * trial.support.size)
 
 
-def best_held_out(m: int, trials: Sequence[Trial]) -> Trial:
+def best_held_out(m: int, trials: Sequence[Trial], rules: SelectionConfig) -> Trial:
     """The trial that holds out best (``m``: the design's columns before the trial's);
     where that one's effect was fitted at zero (the design as it was) and acts on many
     rows, the best of those fitted above zero that act locally, if one does: the held-out
-    rows may hold none of its events (pair_offset_stribeck-260 of the independent
-    generator: a fall over 6.9 mm/s at two fast moves, mostly trained on, the held-out
-    rows up to 6.6 mm/s; every Stribeck speed fitted above zero held out worse, the best
-    trial was v_s 1.0 mm/s at zero on 44 % of the rows, and the fall was never judged at
-    its events)."""
+    rows may hold none of its events (a fall at a trace's two fast moves, mostly trained
+    on), and it is then judged at its events."""
     best = min(trials, key=lambda t: t.heldout_rms_N)
-    if best.option.is_filter or np.any(best.theta[m:]) or acts_locally(best):
+    if best.option.is_filter or np.any(best.theta[m:]) or acts_locally(best, rules):
         return best
-    fitted = [t for t in trials if np.any(t.theta[m:]) and acts_locally(t)]
+    fitted = [t for t in trials if np.any(t.theta[m:]) and acts_locally(t, rules)]
     return min(fitted, key=lambda t: t.heldout_rms_N) if fitted else best
 
 
-def where_acting(values: FloatArray) -> BoolArray:
-    """The rows where design columns ``values`` act (``SUPPORT_ENERGY``, ``SUPPORT_LEVEL``),
-    each column scaled to its peak."""
+def where_acting(values: FloatArray, rules: SelectionConfig) -> BoolArray:
+    """The rows where design columns ``values`` act, each column scaled to its peak: the
+    fewest rows holding ``support_energy`` of their energy, of those the ones at least
+    ``support_level`` of the peak (a raised element's tail through a standstill holds a
+    few per cent of its stretch for thousands of rows: not where it acts)."""
     acting = np.zeros(values.shape[0], dtype=bool)
     if values.shape[0] == 0:  # a part without held-out rows (the training trace)
         return acting
@@ -350,20 +341,19 @@ def where_acting(values: FloatArray) -> BoolArray:
     total = float(np.sum(energy))
     if total == 0.0:
         return acting
-    least = _top_share(energy, SUPPORT_ENERGY * total)
+    least = _top_share(energy, rules.support_energy * total)
     if least is not None:
-        return (energy >= least) & (energy >= SUPPORT_LEVEL**2)
+        return (energy >= least) & (energy >= rules.support_level**2)
     order = np.argsort(energy)[::-1]
-    count = int(np.searchsorted(np.cumsum(energy[order]), SUPPORT_ENERGY * total)) + 1
+    count = int(np.searchsorted(np.cumsum(energy[order]), rules.support_energy * total)) + 1
     acting[order[:count]] = True
-    return acting & (energy >= SUPPORT_LEVEL**2)
+    return acting & (energy >= rules.support_level**2)
 
 
 def _top_share(energy: FloatArray, share: float) -> float | None:
     """The least energy of the fewest rows (largest first) whose energies add up to
-    ``share``, from the sorted values of the rows with any (a sort of values only, of
-    those rows only: a full argsort took 4 ms a call); None where rows of that energy
-    also fall just outside (ties: which of them are in is the argsort's order)."""
+    ``share``, from the sorted values of the rows with any; None where rows of that
+    energy also fall just outside (ties: which of them are in is the argsort's order)."""
     values = np.sort(energy[energy > 0.0])[::-1]
     count = int(np.searchsorted(np.cumsum(values), share)) + 1
     if count > values.size:

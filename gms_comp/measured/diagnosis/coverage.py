@@ -1,33 +1,14 @@
 """What a trace's motion cannot tell apart: caveats printed beside the causes.
 
-A force that depends on the speed (viscous, a Stribeck fall) and one that depends on the
-direction (a direction asymmetry, an offset) are different columns of the design only
-where the trace moves at the same speeds both ways, or at several speeds one way. Where
-each direction holds one narrow band of speeds and the two bands differ, every force of
-the speed and the direction is two numbers, one per band: the baseline's sliding level
-and any one of those effects fit it alike, and only the speed-up and slow-down ramps
-tell them apart. The diagnosis still names the effect that fits best; the caveat says
-that the trace could not have told it from the others.
-
-Measured on the independent generator's seeds 101-130 (tests/indepgen.py): seed 119
-moves forward at 6.3-7.9 mm/s only and back at 1.0-1.6 mm/s only, and its hidden Stribeck
-fall was named ``direction_asymmetry`` (both fit the held-out rows within 3 %). On
-every other seed, and on EMPS, some direction holds two bands or a band wider than
-``NARROW_BAND``, or the bands overlap.
-
-Motion can confound other pairs in ways no rule of the speeds lists (a trace that moves
-fast only in its first seconds: a force of the speed and one that changes over time), so
-the fit's own near tie is a caveat too: when the first effect was kept, another lowered
-the held-out RMS nearly as much (``NEAR_TIE``). Independent stribeck-223 moves faster
-than 1.13 mm/s only in its first 2.9 s of 29 s; its Stribeck fall (v_s 5.75 mm/s) and a
-drift over the first second both took the baseline's 0.1704 N held out to 0.1551 N, and
-the drift was named.
-
-A kept effect's shape at the bound of its search is a caveat as well: the trace could
-not place it further (``AT_BOUND``). Independent stribeck-251 moves at 6.35 mm/s at the
-most and hides a fall with v_s 5.67 mm/s, still 28 % of its height at the top speed: v_s
-is held at half the top speed (the Stribeck bound) and the ratio fitted there is the fall
-within the trace's speeds, below the truth's.
+- ``speed_direction``: where each direction holds one narrow band of speeds and the two
+  differ, a force of the speed (viscous, stribeck) and one of the direction
+  (direction_asymmetry, offset) are the same two numbers, one per band; only the ramps
+  tell them apart, and the diagnosis names the one that fits best.
+- ``near_tie``: as the first effect was kept, another lowered the held-out error nearly as
+  much (motion can confound pairs no rule of the speeds lists).
+- ``at_bound``: a kept effect's shape ended at the bound of its search (a Stribeck speed at
+  half the top speed: the fall may go on above the trace's speeds).
+- ``drive_force``: a friction force explained by a mass may be a drive's force.
 """
 
 from __future__ import annotations
@@ -39,23 +20,16 @@ from typing import Any
 import numpy as np
 
 from gms_comp.arrays import FloatArray
+from gms_comp.measured.diagnosis.config import CaveatConfig
+from gms_comp.measured.policies import POLICIES, policy
 from gms_comp.runtime import effects as fx
 from gms_comp.runtime.effects.path import Context
 
-# Speeds are binned by BAND_BIN_DECADES of log10; bins that hold at least BAND_SHARE of
-# a direction's moving time are its bands (adjacent held bins: one band).
+# Speeds are binned by this many decades of log10 (a band: adjacent bins that each hold
+# ``band_share`` of a direction's moving time).
 BAND_BIN_DECADES = 0.1
-BAND_SHARE = 0.02
-# A band narrower than this factor (top / bottom speed) is one speed for a fit: on seed
-# 119, 6.3-7.9 mm/s (1.26) and 1.0-1.6 mm/s (1.58).
-NARROW_BAND = 2.0
 # The effects a confound of speed and direction concerns.
-SPEED_OR_DIRECTION = ("viscous", "stribeck", "direction_asymmetry", "offset")
-# A shape parameter within this factor of a bound of its search is at it.
-AT_BOUND = 1.02
-# Another effect near the first one kept: it took at least this share of the first
-# effect's drop in held-out RMS in the round that kept it.
-NEAR_TIE = 0.9
+SPEED_OR_DIRECTION = tuple(name for name, p in POLICIES.items() if p.speed_or_direction)
 
 
 @dataclass(frozen=True)
@@ -71,17 +45,17 @@ class Caveat:
         return {"kind": self.kind, "effects": list(self.effects), "text": self.text}
 
 
-def speed_bands(speed_m_s: FloatArray) -> list[tuple[float, float, float]]:
+def speed_bands(speed_m_s: FloatArray, share: float) -> list[tuple[float, float, float]]:
     """The bands of speed a direction holds: (lowest, highest m/s, share of the time),
-    from bins of ``BAND_BIN_DECADES`` that each hold ``BAND_SHARE`` of ``speed_m_s``'s
-    samples (all positive), adjacent bins merged."""
+    from bins of ``BAND_BIN_DECADES`` that each hold ``share`` of ``speed_m_s``'s samples
+    (all positive), adjacent bins merged."""
     if speed_m_s.size == 0:
         return []
     logs = np.log10(speed_m_s)
     first = np.floor(float(np.min(logs)) / BAND_BIN_DECADES)
     index = np.floor(logs / BAND_BIN_DECADES - first).astype(np.int64)
     counts = np.bincount(index)
-    held = counts >= BAND_SHARE * speed_m_s.size
+    held = counts >= share * speed_m_s.size
     bands = []
     edges = np.flatnonzero(np.diff(np.concatenate(([0], held.astype(np.int8), [0]))))
     for lo, hi in zip(edges[::2], edges[1::2], strict=True):
@@ -93,16 +67,18 @@ def speed_bands(speed_m_s: FloatArray) -> list[tuple[float, float, float]]:
     return bands
 
 
-def speed_direction_confound(velocity_m_s: FloatArray, standstill_m_s: float) -> Caveat | None:
+def speed_direction_confound(
+    velocity_m_s: FloatArray, standstill_m_s: float, rules: CaveatConfig
+) -> Caveat | None:
     """A caveat when each direction moves in one narrow band of speeds and the two bands
     differ (module docstring); None otherwise, or when the trace moves one way only."""
     moving = np.abs(velocity_m_s) > standstill_m_s
-    forward = speed_bands(velocity_m_s[moving & (velocity_m_s > 0)])
-    back = speed_bands(-velocity_m_s[moving & (velocity_m_s < 0)])
+    forward = speed_bands(velocity_m_s[moving & (velocity_m_s > 0)], rules.band_share)
+    back = speed_bands(-velocity_m_s[moving & (velocity_m_s < 0)], rules.band_share)
     if len(forward) != 1 or len(back) != 1:
         return None
     (f_lo, f_hi, _), (b_lo, b_hi, _) = forward[0], back[0]
-    narrow = f_hi / f_lo <= NARROW_BAND and b_hi / b_lo <= NARROW_BAND
+    narrow = f_hi / f_lo <= rules.narrow_band and b_hi / b_lo <= rules.narrow_band
     if not narrow or (f_lo < b_hi and b_lo < f_hi):
         return None
     return Caveat(
@@ -116,10 +92,12 @@ def speed_direction_confound(velocity_m_s: FloatArray, standstill_m_s: float) ->
     )
 
 
-def near_tie(first: str, design_rms_N: float, trials: Sequence[tuple[str, float]]) -> Caveat | None:
+def near_tie(
+    first: str, design_rms_N: float, trials: Sequence[tuple[str, float]], share: float
+) -> Caveat | None:
     """A caveat when effects of the first round's admissible ``trials`` (name, held-out
     RMS) other than the ``first`` one named lowered the design's held-out RMS
-    ``design_rms_N`` by ``NEAR_TIE`` of the first one's drop or more; None otherwise, or
+    ``design_rms_N`` by ``share`` of the first one's drop or more; None otherwise, or
     when the first one named was not among them (the refit ranked another first)."""
     held = dict(trials)
     if first not in held or held[first] >= design_rms_N:
@@ -127,7 +105,7 @@ def near_tie(first: str, design_rms_N: float, trials: Sequence[tuple[str, float]
     drop = design_rms_N - held[first]
     near = sorted(
         ((h, name) for name, h in held.items()
-         if name != first and design_rms_N - h >= NEAR_TIE * drop),
+         if name != first and design_rms_N - h >= share * drop),
     )  # fmt: skip
     if not near:
         return None
@@ -141,15 +119,17 @@ def near_tie(first: str, design_rms_N: float, trials: Sequence[tuple[str, float]
     )
 
 
-def at_bound(effects: Sequence[fx.Effect], ctx: Context, presliding_m: float) -> Caveat | None:
+def at_bound(
+    effects: Sequence[fx.Effect], ctx: Context, presliding_m: float, factor: float
+) -> Caveat | None:
     """A caveat naming the ``effects`` with a shape parameter at a bound of its search
-    (within ``AT_BOUND``; the bounds on the path ``ctx``); None when none is."""
+    (within ``factor``; the bounds on the path ``ctx``); None when none is."""
     found = []
     for effect in effects:
-        for key, (lo, hi) in effect.shape_bounds(ctx, presliding_m).items():
+        for key, (lo, hi) in policy(effect).shape_bounds(ctx, presliding_m).items():
             value = float(getattr(effect, key))
-            if value >= hi / AT_BOUND or value <= lo * AT_BOUND:
-                side = "upper" if value >= hi / AT_BOUND else "lower"
+            if value >= hi / factor or value <= lo * factor:
+                side = "upper" if value >= hi / factor else "lower"
                 text = f"{effect.name}'s {key} at its {side} bound {value:.4g}"
                 found.append((effect.name, text))
     if not found:
@@ -164,15 +144,35 @@ def at_bound(effects: Sequence[fx.Effect], ctx: Context, presliding_m: float) ->
     )
 
 
+def drive_force(named: Sequence[str], force_kind: str) -> Caveat | None:
+    """A caveat when the first effect named is one a drive force holds in its baseline
+    (``Policy.force_kinds``: a mass) and the force was read as friction: it may be a
+    drive force (a motor current times its force constant)."""
+    if not named or force_kind != "friction" or "drive" in POLICIES[named[0]].force_kinds:
+        return None
+    return Caveat(
+        "drive_force",
+        (named[0],),
+        f"the cause found is {named[0]}, which a drive force holds: if force_N is the "
+        f"drive's force (a motor current times its force constant) rather than a friction "
+        f"sensor's, this is the axis moving its own mass, not friction; diagnose it again "
+        f"with --force-kind drive",
+    )
+
+
 def caveats(
-    velocity_m_s: FloatArray, standstill_m_s: float, named: Sequence[str],
+    velocity_m_s: FloatArray, standstill_m_s: float, named: Sequence[str], rules: CaveatConfig,
     first_round: tuple[float, Sequence[tuple[str, float]]] = (0.0, ()),
-    bounded: Caveat | None = None,
+    bounded: Caveat | None = None, force_kind: str = "friction",
 ) -> tuple[Caveat, ...]:  # fmt: skip
     """The caveats that concern any of the ``named`` effects; ``first_round``: the
     selection's first design held-out RMS and its admissible trials (:func:`near_tie`);
-    ``bounded``: :func:`at_bound`'s."""
-    found = [speed_direction_confound(velocity_m_s, standstill_m_s), bounded]
+    ``bounded``: :func:`at_bound`'s; ``force_kind``: what the force was read as
+    (:func:`drive_force`)."""
+    found = [
+        speed_direction_confound(velocity_m_s, standstill_m_s, rules), bounded,
+        drive_force(named, force_kind),
+    ]  # fmt: skip
     if named:
-        found.append(near_tie(named[0], *first_round))
+        found.append(near_tie(named[0], *first_round, rules.near_tie))
     return tuple(c for c in found if c is not None and set(c.effects) & set(named))

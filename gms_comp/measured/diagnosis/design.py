@@ -44,8 +44,8 @@ class Columns:
 
     @staticmethod
     def join(blocks: Sequence[Columns]) -> Columns:
-        """The blocks side by side, stacked once (a design of k blocks joined pairwise
-        copied the tall matrix k - 1 times: 4.2 of 43 s on one trace)."""
+        """The blocks side by side, stacked once (joined pairwise, the tall matrix was
+        copied k - 1 times)."""
         if len(blocks) == 1:
             return blocks[0]
         return Columns(
@@ -65,8 +65,7 @@ def solve_gram(gram: FloatArray, rhs: FloatArray, lower: FloatArray) -> FloatArr
     columns of very different sizes share one tolerance. The free coefficients (lower
     -inf) are eliminated (Schur complement), the bounded ones shifted to their bounds,
     and the rest is a non-negative least-squares problem on the Cholesky factor, solved
-    by scipy's compiled Lawson-Hanson :func:`scipy.optimize.nnls` (about 0.3 ms for 18
-    unknowns; ``lsq_linear``'s BVLS, in Python, took 1 ms, and a diagnosis solves
+    by scipy's compiled Lawson-Hanson :func:`scipy.optimize.nnls` (a diagnosis solves
     thousands)."""
     d = np.sqrt(np.maximum(np.diag(gram), 0.0))
     scale = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0)
@@ -125,10 +124,8 @@ class PartDesign:
 class GramDesign:
     """The training Gram matrix of a design over several parts, for fast trials.
 
-    The design's rows are read in place, run by run of the masks (60 blocks: about 20
-    runs a part), never gathered: a gathered copy of the training rows cost as much as
-    the Gram matrix itself (1.4 of 22 s of a trace in 776 designs), more with another
-    diagnosis beside it on the memory bus.
+    The design's rows are read in place, run by run of the masks, never gathered (a
+    gathered copy of the training rows cost as much as the Gram matrix itself).
 
     Parameters
     ----------
@@ -211,8 +208,7 @@ class GramDesign:
     def trials(self, extras: Sequence[Sequence[Columns]]) -> list[tuple[FloatArray, FloatArray]]:
         """:meth:`trial` of each of ``extras``, the design's rows read once for a batch
         of them (``BATCH_COLUMNS`` extra columns): a trial's cross products with the
-        design and its held-out prediction are products of the whole design, and one by
-        one a grid of 60 read the design 120 times (2.7 of 16 s of a typical trace)."""
+        design and its held-out prediction are products of the whole design."""
         out: list[tuple[FloatArray, FloatArray]] = []
         batch: list[Sequence[Columns]] = []
         for extra in extras:
@@ -261,12 +257,28 @@ class GramDesign:
     def refitted(self, values: Sequence[FloatArray]) -> tuple[FloatArray, FloatArray]:
         """Coefficients and held-out residual of another design on the same rows and
         bounds (``values``: one (rows, m) array per part, this design's columns through
-        a filter), fitted on the training rows. Its rows are read in place, run by run
-        of the masks (60 blocks): gathered, a filter trial's rows were copied twice, a
-        third of its time."""
+        a filter), fitted on the training rows (its rows read in place)."""
         gram, rhs = self._train_gram(values)
         theta = solve_gram(gram, rhs, self.lower)
         return theta, self._held_y - np.concatenate(self._held_prediction(values, theta))
+
+    def jackknife(self, groups: int) -> list[FloatArray]:
+        """The coefficients fitted with each of ``groups`` contiguous groups of the training
+        rows (in time, part after part) left out in turn (a delete-a-group jackknife)."""
+        rows = np.concatenate(self._train_rows)
+        part = np.concatenate([np.full(r.size, p) for p, r in enumerate(self._train_rows)])
+        edges = np.linspace(0, rows.size, groups + 1).astype(int)
+        out = []
+        for lo, hi in itertools.pairwise(edges):
+            gram, rhs = self.gram.copy(), self.rhs.copy()
+            for p in range(len(self.parts)):
+                taken = rows[lo:hi][part[lo:hi] == p]
+                if taken.size:
+                    a = self.parts[p].columns.values[taken]
+                    gram -= a.T @ a
+                    rhs -= self.parts[p].force_N[taken] @ a
+            out.append(solve_gram(gram, rhs, self.lower))
+        return out
 
     def cross_products(
         self, values: Sequence[FloatArray]

@@ -11,16 +11,10 @@ from gms_comp.arrays import FloatArray
 # An encoder's step: the smallest nonzero steps (the first STEP_CANDIDATES distinct ones,
 # STEP_TOLERANCE apart, among the smallest 5 %) are tried in turn, each refined from the
 # steps of at most STEP_REFINE_COUNTS counts, then of STEP_CHECKED_COUNTS (a CSV's 12
-# digits put 4e-5 of a 2 nm step on one step: 0.4 count off at 8713 counts); the step is
-# the first that at least QUANTISED_SHARE of the steps of at most STEP_CHECKED_COUNTS
-# counts are whole multiples of, within STEP_TOLERANCE (of one step), from at least
-# STEP_MIN_CHECKED of them, however rare one count is. A step seen in 0.1 % of the steps
-# was required: a fast trace of the independent generator (seed 261: a 2.05 nm encoder,
-# single counts 0.014 % of 130 712 steps, up to 8713 counts) read as unquantised, its
-# resolution the 5th percentile, 0.55 um; the free GMS's smallest break-away was 1.09 um
-# for the truth's 0.27 um, and reversal_transient stood in for the stiff element on 16
-# of the seed's 18 traces. EMPS's DATA_EMPS now reads as its 50 nm encoder (15 um
-# before).
+# digits put a fraction of a count on a step of thousands of them); the step is the
+# first that QUANTISED_SHARE of those steps are whole multiples of, within
+# STEP_TOLERANCE, from STEP_MIN_CHECKED of them or more, however rare one count is (a
+# fast trace's single counts may be 0.01 % of its steps).
 STEP_CANDIDATES = 8
 STEP_REFINE_COUNTS = 20
 STEP_CHECKED_COUNTS = 1000
@@ -31,11 +25,8 @@ QUANTISED_SHARE = 0.9
 
 def position_resolution(position_m: FloatArray) -> float:
     """The smallest position step the sensor reports: the encoder's step
-    (:func:`encoder_step`), else the 5th percentile of the nonzero steps.
-
-    The percentile alone read a 39 nm encoder as 0.43 um on an independent trace whose
-    motion is mostly fast (11 x; 4-38 x on six of ten such traces), which put the free
-    GMS's smallest break-away above the true ones and the reversal deadband at 0.26 um."""
+    (:func:`encoder_step`), else the 5th percentile of the nonzero steps (the percentile
+    alone reads a fast trace's encoder 4-38 x too coarse)."""
     return step_and_resolution(position_m)[1]
 
 

@@ -2,12 +2,9 @@
 
 Velocity and acceleration come from the measured position the way the EMPS benchmark
 (Janot, Gautier, Brunot 2019) derives them: a zero-phase 4th-order Butterworth low-pass
-(MATLAB ``filtfilt`` edge padding) and central differences; for a diagnosis the
-acceleration's position is first continued past each end (``REFLECTED_PERIODS``) and its
-second difference taken over three samples, not five.
-:func:`decimate_matlab` reproduces MATLAB's ``decimate`` (Chebyshev-I order 8,
-forward-backward, the last sample kept), which the benchmark applies before least
-squares and before its error norms.
+(MATLAB ``filtfilt`` edge padding) and central differences (for a diagnosis, the
+acceleration over three samples, its position continued past each end);
+:func:`decimate_matlab` is MATLAB's ``decimate``, which the benchmark applies.
 """
 
 from __future__ import annotations
@@ -36,13 +33,9 @@ def decimate_matlab(x: FloatArray, factor: int) -> FloatArray:
 
 # A diagnosed trace's acceleration comes from its position continued past each end by
 # its odd reflection over this many periods of the acceleration's cut-off: MATLAB's pad of
-# 3 x the filter order (12 samples) is shorter than the filter's settling, and on a trace
-# that ends moving its edge rang into the acceleration (independent none-107, 3.6 kHz,
-# 30.6 mm/s at the end: 3.2 m/s^2 over the last 15 samples, twice the truth's peak,
-# which the inertia's events and the held-out split took for the top acceleration;
-# reflected, 0.006 m/s^2). Position and velocity keep the benchmark's edges: reflected
-# too, the velocity at the stops of the project's own table trace moved by about 1e-9
-# m/s and its calibrated table held out 1.8 % worse (4.2 % above the free GMS's).
+# 3 x the filter order is shorter than the filter's settling, and a trace that ends moving
+# rang into the acceleration (twice the true peak at its last samples). Position and
+# velocity keep the benchmark's edges.
 REFLECTED_PERIODS = 3.0
 
 
@@ -53,12 +46,10 @@ def kinematics(
     """Position low-passed at ``cutoff_Hz`` (zero phase), velocity and acceleration by
     central differences; a measured velocity column is not used, so that position,
     velocity and acceleration share one filter. With ``acceleration_cutoff_Hz`` below
-    ``cutoff_Hz`` the acceleration comes from the position low-passed there instead: the
-    second difference of a barely filtered encoder position is mostly quantisation (a
-    20 nm step at 4 kHz is 0.3 m/s^2), which a mass fitted on it would carry as noise and
-    as a bias towards zero. ``reflected``: the acceleration's position continued past
-    the ends first (``REFLECTED_PERIODS``) and differenced over three samples
-    (:func:`_second_difference`); without, the benchmark's edges and differences exactly."""
+    ``cutoff_Hz`` the acceleration comes from the position low-passed there instead (the
+    second difference of a barely filtered encoder position is mostly quantisation).
+    ``reflected``: the acceleration's position continued past the ends first and
+    differenced over three samples; without, the benchmark's edges and differences."""
     dt = trace.sample_time_s
     x = _lowpass(trace.position_m, cutoff_Hz, dt)
     v = np.gradient(x, dt)
@@ -79,9 +70,7 @@ def _second_difference(x: FloatArray, dt: float) -> FloatArray:
     Its gain at a frequency f is sinc(f dt)^2, 0.97 at a tenth of the sample rate; the
     benchmark's difference of a central difference spans five samples and has
     sinc(2 f dt)^2, 0.87 there, and a mass fitted on it comes out high by what the
-    acceleration lost (independent inertia-239, 1 kHz, half its acceleration's energy
-    above 50 Hz: 0.543 kg for a true 0.469; on this difference 0.469 with the truth's
-    friction removed)."""
+    acceleration lost."""
     a = np.empty_like(x)
     a[1:-1] = (x[2:] - 2.0 * x[1:-1] + x[:-2]) / dt**2
     a[0], a[-1] = a[1], a[-2]
@@ -113,11 +102,7 @@ def dequantised(position_m: FloatArray, step_m: float) -> FloatArray:
     between the two readings half a sample before the second, and moved evenly between
     such crossings; a count held much longer than its neighbours (a stop, a reversal
     within a count) is the position while held, after half the neighbours' crossing
-    time. Changes of several counts in a sample (fast motion) keep their readings.
-
-    On independent traces the position error while moving below a count per sample fell
-    from 0.29 of a count (the staircase) to 0.03-0.16, and at rest stays the staircase's.
-    """
+    time. Changes of several counts in a sample (fast motion) keep their readings."""
     x = np.asarray(position_m, dtype=float)
     n = x.size
     change = np.flatnonzero(np.diff(x) != 0.0)

@@ -17,7 +17,7 @@ from scipy import stats
 
 from gms_comp.arrays import BoolArray, FloatArray, IntArray
 from gms_comp.gms import GmsParams
-from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.config import DiagnosisConfig, SplitConfig
 from gms_comp.measured.diagnosis.design import runs
 from gms_comp.measured.diagnosis.encoder import step_and_resolution
 from gms_comp.measured.diagnosis.motion import Kinematics, dequantised, kinematics
@@ -26,66 +26,10 @@ from gms_comp.runtime import effects as fx
 from gms_comp.runtime.effects.path import REST_HOLD_S
 from gms_comp.validation import InputError
 
-# The noise read at rest (:func:`rest_rms`): on standstills of REST_RUN_SAMPLES or more,
-# from REST_SAMPLES in all.
-REST_RUN_SAMPLES = 50
-REST_SAMPLES = 1000
 # The benchmark's low-pass for a drive force's kinematics.
 DRIVE_CUTOFF_HZ = 100.0
-# A friction force's acceleration (an inertia effect's column) is low-passed where its
-# quantisation noise is this share of its RMS (:func:`acceleration_cutoff`).
-ACCELERATION_NOISE_SHARE = 0.03
-# A trace must reverse at least this often, and its moving speeds must spread over at
-# least this ratio (90th over 10th percentile), to separate the effects.
-MIN_REVERSALS = 2
-MIN_SPEED_SPREAD = 1.5
 # A force whose spread is below this fraction of its magnitude is constant.
 CONSTANT_FORCE_FRACTION = 1e-9
-
-
-# The held-out third of the blocks is the second (blocks 1, 4, 7, ...) unless it holds
-# fewer than HELD_STARTS_SHARE of a third of the trace's starts after a standstill (a
-# dwell of at least the path's REST_HOLD_S): then the third nearest a third of them. A
-# dwell-time effect acts only at those starts; on independent traces with 4-14 of them
-# the second third held none on two of ten (starts per third 1/0/3 and 2/0/5), and the
-# effect's shape was searched on held-out rows where it does not act.
-HELD_STARTS_SHARE = 0.5
-# Nor may it take the trace's top speeds from the training rows: if the training rows do
-# not reach TRAIN_TOP_SHARE of the top speed, the held-out blocks that do are trained
-# on. A velocity law is otherwise extrapolated to the speeds it is judged at: on an
-# independent trace every row above 20 mm/s (a 36 mm/s stroke, 1.6 % of the trace) was
-# in one held-out block, and a level still rising at 10 mm/s (the truth's, fitted as well
-# as the exponential one on the training rows: 0.6131 against 0.6134 N) and a viscous
-# term were traded blind (c = 125 N s/m for a true 71, held out 12 % above the noise).
-# (Choosing another third instead moved the trace's first motion, or a drift's early
-# rows, into the held-out part of three other traces and cost their diagnoses.)
-# The same holds for the top accelerations: an inertia's mass is otherwise fitted where
-# the acceleration is small and in phase with the position (a sine's a = -w^2 x), which
-# the elements' stiffness in presliding also fits. On one independent trace (seed 124 of
-# 101-130; the only one) both 7.4 m/s^2 ramps were held out and the training rows reached
-# 0.55: 0.33 kg fitted for a true 0.42 (joint fit on the training rows 0.26, on every row
-# 0.42); trained on, 0.41.
-TRAIN_TOP_SHARE = 0.8
-# And the held-out rows must reach HELD_TOP_SHARE of the top speed: where they do not,
-# the training rows that do are split in time (:func:`top_rows_held`), half of them held
-# out, the training rows keeping TRAIN_TOP_SHARE of the top speed and acceleration. A
-# trace's fast moves may lie in one block: on stribeck-159 of an independent generator
-# (every row above 7 mm/s of a 35 mm/s trace in one of 60 blocks, 1 % of the rows, the
-# held-out part below 2.1 mm/s) a Stribeck fall over 6 mm/s (17 x the noise there) was
-# fitted on the training rows and judged where it does not act: held out 1.5 % lower,
-# z 2.7, and `none`.
-HELD_TOP_SHARE = 0.2
-
-
-# At most every this many samples are fitted (DiagnosisConfig.fit_rate_Hz): a dwell gain
-# shows in the few samples of a break-away, judged there by their RMS. On the independent
-# generator's dwell_time-118 (4.8 kHz, a gain of 0.09, peaks 3 x the noise) every 3rd
-# sample read `none`, every 2nd the gain (0.073); on dwell_time-248 (3.6 kHz) every 4th
-# or 6th read `none`; on dwell_time-247 every 5th or 6th ran gamma to its bound. What
-# the fitted model leaves is judged on every sample (run.py): a bump crossed once
-# (unknown_bumps-229, 4.6 kHz) held 13-18 samples in each 0.125 mm bin, 6-9 on every 2nd
-# sample, fewer than structure.SPOT_ONE_WAY_SAMPLES, and read `none`.
-MAX_FITTED_EVERY = 2
 
 
 @dataclass(frozen=True)
@@ -98,17 +42,13 @@ class Part:
     train: BoolArray
     held: BoolArray
     # The path's reversals, rests and distances are the measured position's, as the
-    # compensator sees it: the kinematics' zero-phase low-pass rings where a fast move
-    # stops short (on reversal_transient-132 of the independent generator, a stop from
-    # 74 mm/s overshot its rest by 1.2 nm, 0.76 of the 1.6 nm encoder's step, and that
-    # retreat was a reversal: the transient's 2.8 N flipped at the stop and again at the
-    # start after it, which the truth does not have; the residual read as a tone).
+    # compensator sees it (the kinematics' zero-phase low-pass rings where a fast move
+    # stops short, and a ring of a count's fraction is a false reversal).
     path_position_m: FloatArray
 
     def picked(self, every: int) -> Part:
         """Every ``every``-th row of this part, its kinematics the full rate's picked (not
-        differenced again at the lower rate: inertia-244 of the independent generator,
-        1.3 kHz, fitted on every 2nd sample, had its mass 13 % high; picked, 0.4 %)."""
+        differenced again at the lower rate: a mass came out 13 % high so)."""
         rows = slice(None, None, every)
         return Part(self.kin.slice(0, None, every), self.force_N[rows], self.train[rows],
                     self.held[rows], self.path_position_m[rows])  # fmt: skip
@@ -133,6 +73,9 @@ class Prepared:
     reversal_deadband_m: float
     position_resolution_m: float
     rest_band_m: float
+    # the force's noise (standard deviation), white or coloured (:func:`noise_at_rest`):
+    # read once, from every sample, and what every test of the diagnosis reads
+    noise_N: float = 0.0
     encoder_step_m: float = 0.0  # 0: the position is not on an encoder's counts
     dequantised: bool = False  # the kinematics are from the counts read as motion
     fitted_every: int = 1  # the trace's samples fitted: every k-th (DiagnosisConfig.fit_rate_Hz)
@@ -148,19 +91,15 @@ class Prepared:
     def context(self, part: Part, gms_force_N: FloatArray) -> fx.Context:
         """The path context of ``part`` with the GMS force ``gms_force_N``: its
         standstill speed, deadband and rest band, traced on its measured position, its
-        reversals dated from their turning points (a recorded trace knows them). Dated
-        where the retreat passed the deadband, as a streaming compensator dates them,
-        reversal_transient-135 of the independent generator (a 42 nm encoder, slow
-        vertices) had A 37.5 % off; in hindsight 5.7 %. Over its seeds 121-150 nothing
-        else changed: the 30 reversal_transient traces' A error went from 4.4 % median,
-        37.5 % worst to 3.3 % and 20 %; EMPS 2.27 % train, 2.96 % cross-test as before."""
+        reversals dated from their turning points (a recorded trace knows them; dated
+        where the retreat passed the deadband, as a streaming compensator dates them, a
+        reversal transient's amplitude came out far off at slow vertices)."""
         index = next(i for i, p in enumerate(self.parts) if p is part)
         return dataclasses.replace(self._paths[index], gms_force_N=np.asarray(gms_force_N, float))
 
     @functools.cached_property
     def _paths(self) -> list[fx.Context]:
-        """Each part's path context (:meth:`context` without a GMS force), traced once:
-        every baseline fitted traced it again (33 times, 3 of 47 s of a trace)."""
+        """Each part's path context (:meth:`context` without a GMS force), traced once."""
         settings = (self.standstill_speed_m_s, self.reversal_deadband_m, self.rest_band_m)
         return [
             fx.Context.of(
@@ -173,26 +112,25 @@ class Prepared:
 def force_noise(force_N: FloatArray) -> float:
     """The force's white noise (standard deviation), from the median absolute deviation
     of its second differences (sqrt 6 x the noise; a friction force's own second
-    difference is small but at few samples). Within 1 % of the truth's on 20
-    independent traces."""
+    difference is small but at few samples)."""
     d2 = np.diff(force_N, 2)
     if d2.size == 0:
         return 0.0
     return float(stats.median_abs_deviation(d2, scale="normal")) / np.sqrt(6.0)
 
 
-def rest_rms(values: FloatArray, still: BoolArray) -> float:
-    """RMS of ``values`` over the runs of ``still`` of ``REST_RUN_SAMPLES`` or more, each
+def rest_rms(values: FloatArray, still: BoolArray, rules: SplitConfig) -> float:
+    """RMS of ``values`` over the runs of ``still`` of ``rest_run_samples`` or more, each
     less its straight line (a held level, a slow settling); 0 with fewer than
-    ``REST_SAMPLES`` such samples."""
+    ``rest_samples`` such samples."""
     left: list[FloatArray] = []
     for rows in runs(still):
-        if rows.size >= REST_RUN_SAMPLES:
+        if rows.size >= rules.rest_run_samples:
             k = np.arange(rows.size, dtype=np.float64)
             run = values[rows]
             left.append(run - np.polyval(np.polyfit(k, run, 1), k))
     n = sum(a.size for a in left)
-    if n < REST_SAMPLES:
+    if n < rules.rest_samples:
         return 0.0
     return float(np.sqrt(sum(float(np.sum(a**2)) for a in left) / (n - 2 * len(left))))
 
@@ -204,17 +142,18 @@ def unchanged(position_m: FloatArray) -> BoolArray:
     return same
 
 
-def noise_at_rest(force_N: FloatArray, position_m: FloatArray) -> float:
+def noise_at_rest(force_N: FloatArray, position_m: FloatArray, rules: SplitConfig) -> float:
     """The force's noise, white or not: :func:`force_noise`, or the force's spread at rest
-    (:func:`rest_rms` where the counts do not change) where that is larger."""
-    return max(force_noise(force_N), rest_rms(force_N, unchanged(position_m)))
+    (:func:`rest_rms` where the counts do not change) where that is larger (a sensor's
+    low-passed noise reads several times smaller in the second differences)."""
+    return max(force_noise(force_N), rest_rms(force_N, unchanged(position_m), rules))
 
 
 def encoder_force_ratio(gms: GmsParams, prepared: Prepared) -> float:
     """How far the encoder's counts show in a GMS driven by them: the force of the
     elements' stiffness over a count's uniform error (K q / sqrt 12) against the
     force's noise; 0 for a position that is not on an encoder's counts."""
-    noise = force_noise(prepared.main.force_N)
+    noise = prepared.noise_N
     if prepared.encoder_step_m <= 0.0 or noise <= 0.0:
         return 0.0
     stiffness = float(np.sum(gms.stiffness_N_per_m[gms.limit_N > 0.0]))
@@ -225,14 +164,12 @@ def prepare(
     trace: Trace, force_kind: ForceKind, validation: Trace | None, cfg: DiagnosisConfig,
     dequantise: bool = False, held: BoolArray | None = None,
 ) -> Prepared:  # fmt: skip
-    """The parts of ``trace`` (held-out: every third of ``cfg.n_blocks`` blocks, so both
-    parts hold every kind of motion, :func:`held_third`) or of ``trace`` and
-    ``validation`` (held out whole); with ``dequantise``, their kinematics from the
-    encoder's counts read as motion (:func:`.motion.dequantised`); ``held``: the held-out
-    rows of ``trace`` (every sample) as another reading chose them (the two readings are
-    then compared on the same rows). A trace sampled at twice ``cfg.fit_rate_Hz`` or
-    faster has its parts picked (:func:`fitted_every`, :meth:`Part.picked`), the parts
-    of every sample kept as :attr:`Prepared.every_sample`.
+    """The parts of ``trace`` (held out: every third of ``cfg.n_blocks`` blocks,
+    :func:`held_third`) or of ``trace`` and ``validation`` (held out whole); with
+    ``dequantise``, the kinematics from the encoder's counts read as motion; ``held``: the
+    held-out rows another reading chose (the two are then compared on the same rows). A
+    trace sampled at twice ``cfg.fit_rate_Hz`` or faster has its parts picked, those of
+    every sample kept as :attr:`Prepared.every_sample`.
 
     Raises
     ------
@@ -243,7 +180,8 @@ def prepare(
     cutoff = cfg.filter_cutoff_Hz or (DRIVE_CUTOFF_HZ if drive else 0.45 / trace.sample_time_s)
     step, resolution = step_and_resolution(trace.position_m)
     # a drive force's kinematics are the benchmark's (one 100 Hz low-pass for all)
-    accel_cutoff = DRIVE_CUTOFF_HZ if drive else acceleration_cutoff(trace, resolution)
+    accel_cutoff = DRIVE_CUTOFF_HZ if drive else acceleration_cutoff(trace, resolution, cfg.split)
+    noise = noise_at_rest(trace.force_N, trace.position_m, cfg.split)  # the counts as read
     read = dequantise and step > 0.0
     if read:
         trace = _dequantised(trace, step)
@@ -251,14 +189,14 @@ def prepare(
     kin = kinematics(trace, cutoff, accel_cutoff)
     deadband = cfg.reversal_deadband_steps * resolution
     still = cfg.standstill_speed_fraction * float(np.max(np.abs(kin.velocity_m_s)))
-    check_usable(trace, kin, deadband, still)
+    check_usable(trace, kin, deadband, still, cfg.split)
     n = len(trace)
     if validation is None:
         held = _held_rows(kin, still, deadband, cfg, resolution, trace) if held is None else held
         parts: tuple[Part, ...] = (Part(kin, trace.force_N, ~held, held, trace.position_m),)
     else:
         vkin = kinematics(validation, cutoff, accel_cutoff)
-        check_usable(validation, vkin, deadband, still)
+        check_usable(validation, vkin, deadband, still, cfg.split)
         m = len(validation)
         parts = (
             Part(kin, trace.force_N, np.ones(n, dtype=bool), np.zeros(n, dtype=bool),
@@ -267,21 +205,23 @@ def prepare(
                  validation.position_m),
         )  # fmt: skip
     rest_band = cfg.rest_band_steps * resolution
-    full = Prepared(parts, drive, force_kind, still, deadband, resolution, rest_band, step, read)
+    full = Prepared(
+        parts, drive, force_kind, still, deadband, resolution, rest_band, noise, step, read
+    )
     rates = [t.sample_time_s for t in (trace, validation) if t is not None]
-    every = [fitted_every(dt, cfg.fit_rate_Hz) for dt in rates]
+    every = [fitted_every(dt, cfg.fit_rate_Hz, cfg.split.max_fitted_every) for dt in rates]
     if max(every) == 1:
         return full
     picked = tuple(p.picked(k) for p, k in zip(parts, every, strict=True))
     return dataclasses.replace(full, parts=picked, fitted_every=every[0], every_sample=full)
 
 
-def fitted_every(sample_time_s: float, rate_Hz: float) -> int:
+def fitted_every(sample_time_s: float, rate_Hz: float, most: int) -> int:
     """Which samples of a trace sampled every ``sample_time_s`` are fitted: every k-th,
-    k = floor(its sample rate / ``rate_Hz``) but at most ``MAX_FITTED_EVERY``; 1 for
-    ``rate_Hz`` 0 or a slower trace."""
+    k = floor(its sample rate / ``rate_Hz``) but at most ``most``; 1 for ``rate_Hz`` 0 or
+    a slower trace."""
     every = int(1.0 / (sample_time_s * rate_Hz) + 1e-6) if rate_Hz > 0.0 else 1
-    return max(1, min(every, MAX_FITTED_EVERY))
+    return max(1, min(every, most))
 
 
 def _held_rows(
@@ -291,13 +231,14 @@ def _held_rows(
     n = len(trace)
     block = np.arange(n) * cfg.n_blocks // n
     third = block % 3
+    rules = cfg.split
     held = third == held_third(
-        third, kin, still, deadband, cfg.rest_band_steps * resolution, trace.position_m
+        third, kin, still, deadband, cfg.rest_band_steps * resolution, trace.position_m, rules
     )  # fmt: skip
     for size in (kin.velocity_m_s, kin.acceleration_m_s2):
-        held &= ~top_blocks(block, held, np.abs(size))
+        held &= ~top_blocks(block, held, np.abs(size), rules)
     return held | top_rows_held(
-        block, held, np.abs(kin.velocity_m_s), np.abs(kin.acceleration_m_s2)
+        block, held, np.abs(kin.velocity_m_s), np.abs(kin.acceleration_m_s2), rules
     )  # fmt: skip
 
 
@@ -307,48 +248,49 @@ def _dequantised(trace: Trace, step_m: float) -> Trace:
 
 def held_third(
     third: IntArray, kin: Kinematics, still_m_s: float, deadband_m: float,
-    rest_band_m: float, position_m: FloatArray,
+    rest_band_m: float, position_m: FloatArray, rules: SplitConfig,
 ) -> int:  # fmt: skip
     """Which third of the blocks (``third``: each sample's) to hold out: 1, unless it
-    holds fewer than ``HELD_STARTS_SHARE`` of a third of the starts after a standstill
-    (the path's rests, as the effects see them); then the one nearest a third of them
-    (1, 0, 2 on ties)."""
+    holds fewer than ``held_starts_share`` of a third of the starts after a standstill
+    (the path's rests, as the effects see them: a dwell gain acts only there); then the
+    one nearest a third of them (1, 0, 2 on ties)."""
     ctx = fx.Context.of(
         kin, np.zeros(third.size), still_m_s, deadband_m, rest_band_m, position_m
     )  # fmt: skip
     starts = ctx.starts(REST_HOLD_S)
     counts = np.bincount(third[starts], minlength=3)
     share = starts.size / 3.0
-    if counts[1] >= HELD_STARTS_SHARE * share:
+    if counts[1] >= rules.held_starts_share * share:
         return 1
     return min((1, 0, 2), key=lambda k: abs(float(counts[k]) - share))
 
 
-def top_blocks(block: IntArray, held: BoolArray, size: FloatArray) -> BoolArray:
+def top_blocks(block: IntArray, held: BoolArray, size: FloatArray, rules: SplitConfig) -> BoolArray:
     """The rows of the ``held`` blocks (``block``: each sample's) that reach
-    ``TRAIN_TOP_SHARE`` of the top ``size`` (a speed, an acceleration's magnitude), if
-    the training rows do not (else none): they are trained on instead."""
-    reach = TRAIN_TOP_SHARE * float(np.max(size))
+    ``train_top_share`` of the top ``size`` (a speed, an acceleration's magnitude), if
+    the training rows do not (else none): they are trained on instead (a velocity law or
+    a mass is otherwise extrapolated to where it is judged)."""
+    reach = rules.train_top_share * float(np.max(size))
     if np.any(size[~held] >= reach):
         return np.zeros(block.size, dtype=bool)
     return np.isin(block, np.unique(block[held & (size >= reach)]))
 
 
 def top_rows_held(
-    block: IntArray, held: BoolArray, speed: FloatArray, accel: FloatArray
+    block: IntArray, held: BoolArray, speed: FloatArray, accel: FloatArray, rules: SplitConfig
 ) -> BoolArray:
     """The training rows to hold out (``block``: each sample's) where the ``held`` rows do
-    not reach ``HELD_TOP_SHARE`` of the top ``speed`` (else none): in the block of the
+    not reach ``held_top_share`` of the top ``speed`` (else none): in the block of the
     median training row that does, split at the median of that block's such rows, the
     later rows to the block's end, or else the earlier ones from its start; a part that
-    holds some of those rows and leaves the training rows ``TRAIN_TOP_SHARE`` of the top
+    holds some of those rows and leaves the training rows ``train_top_share`` of the top
     speed and of the top ``accel`` (none if neither does)."""
     none = np.zeros(block.size, dtype=bool)
     top = float(np.max(speed))
-    if top <= 0.0 or np.any(speed[held] >= HELD_TOP_SHARE * top):
+    if top <= 0.0 or np.any(speed[held] >= rules.held_top_share * top):
         return none
-    fast = ~held & (speed >= HELD_TOP_SHARE * top)
-    tops = [a >= TRAIN_TOP_SHARE * np.max(a) for a in (speed, accel)]
+    fast = ~held & (speed >= rules.held_top_share * top)
+    tops = [a >= rules.train_top_share * np.max(a) for a in (speed, accel)]
     rows = np.flatnonzero(fast)
     same = np.flatnonzero(block == block[rows[rows.size // 2]])
     inside = rows[(rows >= same[0]) & (rows <= same[-1])]
@@ -362,27 +304,27 @@ def top_rows_held(
     return none
 
 
-def acceleration_cutoff(trace: Trace, resolution_m: float) -> float:
+def acceleration_cutoff(trace: Trace, resolution_m: float, rules: SplitConfig) -> float:
     """The highest low-pass cut-off (Hz) at which the acceleration's quantisation noise is
-    at most ``ACCELERATION_NOISE_SHARE`` of the acceleration's RMS (the signal read at
+    at most ``acceleration_noise_share`` of the acceleration's RMS (the signal read at
     ``DRIVE_CUTOFF_HZ``); the Nyquist frequency if the encoder is fine enough.
 
     A position step q read every dt gives a second difference of RMS q / sqrt(2) / dt^2,
-    its spectrum rising as f^4, so the noise below a cut-off f_c falls as
-    (f_c / f_Nyquist)^2.5. A mass fitted on a noisy acceleration carries the noise and
-    comes out low; filtered too low, the acceleration of jerk-limited moves is smoothed
-    and the mass comes out high (10 % at 100 Hz on a 1 kHz trace)."""
+    its spectrum rising as f^4: the noise below a cut-off f_c falls as (f_c / f_N)^2.5.
+    Too noisy, a mass comes out low; filtered too low, high."""
     dt = trace.sample_time_s
     nyquist = 0.5 / dt
     noise = resolution_m / np.sqrt(2.0) / dt**2
     signal = float(np.sqrt(np.mean(kinematics(trace, DRIVE_CUTOFF_HZ).acceleration_m_s2 ** 2)))
     if noise <= 0.0 or signal <= 0.0:
         return nyquist
-    ratio = ACCELERATION_NOISE_SHARE * signal / noise
+    ratio = rules.acceleration_noise_share * signal / noise
     return float(nyquist * min(1.0, ratio**0.4))
 
 
-def check_usable(trace: Trace, kin: Kinematics, deadband_m: float, still_m_s: float) -> None:
+def check_usable(
+    trace: Trace, kin: Kinematics, deadband_m: float, still_m_s: float, rules: SplitConfig
+) -> None:
     """Refuse a trace without a varying force, reversals, or several speeds."""
     force = trace.force_N
     size = float(np.max(np.abs(force)))
@@ -400,7 +342,7 @@ def check_usable(trace: Trace, kin: Kinematics, deadband_m: float, still_m_s: fl
         )  # fmt: skip
     x = kin.position_m
     extreme_turns = _reversals(x, max(deadband_m, 1e-12))
-    if extreme_turns < MIN_REVERSALS:
+    if extreme_turns < rules.min_reversals:
         raise InputError(
             trace.source, "position_m",
             f"the axis reverses {extreme_turns} time(s): a diagnosis needs presliding after "
@@ -409,7 +351,7 @@ def check_usable(trace: Trace, kin: Kinematics, deadband_m: float, still_m_s: fl
     speed = np.abs(kin.velocity_m_s)
     moving = speed[speed > max(still_m_s, 1e-12)]
     lo, hi = np.percentile(moving, [10, 90]) if moving.size else (0.0, 0.0)
-    if hi <= MIN_SPEED_SPREAD * lo:
+    if hi <= rules.min_speed_spread * lo:
         raise InputError(
             trace.source, "velocity",
             f"the axis moves at one speed only ({1e3 * float(np.median(moving)):.3g} mm/s): "

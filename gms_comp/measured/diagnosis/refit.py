@@ -1,36 +1,36 @@
-"""Stage 5: the kept effects refitted jointly, and the extended model run as the
-compensator runs it.
+"""Stage 5: the kept effects refitted jointly, the backward pass, and the extended model run
+as the compensator runs it.
 
-The effects that scale the friction (stribeck, dwell_time, drift) are columns of the GMS
-force; it is updated to the jointly fitted GMS and the fit repeated (``JOINT_REFITS``
-times), so that they scale the force the extended model will run with. The shapes of
-``REFIT_SHAPES`` are searched again each time by training RMS: the selection chose them
-by held-out RMS with the baseline's GMS force, where a dwell's gain and time constant
-trade off (tau came out 15-30 % high on simulated traces). A kept Stribeck fall's v_s, or
-a kept drift's tau, is then searched together with the slip level it trades against
-(:mod:`.level_search`).
+The effects that scale the friction are columns of the GMS force: it is updated to the
+joint fit and the fit repeated (``JOINT_REFITS`` times), every additive effect's shape
+searched again by training RMS each time. The free baseline is placed again on the force
+less the effects its elements took part of (``Policy.elements_take_part``) and fitted
+through a kept filter (:mod:`.sensed`); the slip level is searched with the one shape that
+trades against it (:mod:`.level`). Backward pass: an effect no longer worth keeping on the
+joint design is dropped, one the joint fit leaves under the size floor too, and an effect
+that trades with the level is judged against the model refitted without it.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams
-from gms_comp.measured.diagnosis.agreement import agreed
 from gms_comp.measured.diagnosis.baseline import (
     Baseline,
     Basis,
     FittedPart,
     fit_baseline,
+    fitted_through,
     held_residual,
     placed_on,
     rebased,
-    refine_slip_level,
     refit_gms_force,
 )
 from gms_comp.measured.diagnosis.basis import FreeBasis
@@ -40,35 +40,23 @@ from gms_comp.measured.diagnosis.candidates import (
     base_gram,
     design,
     fit_on,
+    through,
     widths,
 )
-from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.config import DiagnosisConfig, SelectionConfig
+from gms_comp.measured.diagnosis.criterion import admissible, agreed, lowers
 from gms_comp.measured.diagnosis.design import GramDesign, every_row, rms
-from gms_comp.measured.diagnosis.gain import lowers
-from gms_comp.measured.diagnosis.level_search import (
-    LEVEL_TRADED,
+from gms_comp.measured.diagnosis.level import (
     extended_force,
     extended_model,
     level_with_shape,
+    refine_slip_level,
 )
-from gms_comp.measured.diagnosis.selection import DISCRETE, Selection, admissible, local_search
-from gms_comp.measured.diagnosis.sensed import sensed_again
+from gms_comp.measured.diagnosis.selection import Selection, local_search
+from gms_comp.measured.policies import Leftover
 from gms_comp.runtime import effects as fx
 
 JOINT_REFITS = 3
-# A reversal transient's length is among them: the selection chose it by held-out RMS
-# on the blind baseline's elements, which had taken part of the transient; refitted with
-# the elements, another length fits (independent reversal_transient-105: A 1.29 N over
-# 18 um for a true 0.92 N over 90 um; searched again, 0.79 N over 69 um). A ripple's
-# wavelength too, in its own fine steps, once the elements are placed again.
-REFIT_SHAPES = (fx.DwellTime, fx.Drift, fx.Stribeck, fx.ReversalTransient, fx.PositionRipple)
-# Effects of the position and of the distance from a reversal: the blind baseline's
-# elements are placed with them in the force, before any effect is known, and take part
-# of them (a 9.6 N ripple, 27 % of the level: the elements placed on the force without it
-# fit to the noise, 0.38 N, in every quarter of the trace; placed with it, the extended
-# model left 1.27 N in the slow first quarter, and a tone there read as ``unknown``).
-PLACED_AGAIN = (fx.PositionRipple, fx.ReversalTransient)
-WHOLE_ROWS = (fx.DwellTime,)
 
 
 @dataclass(frozen=True)
@@ -90,106 +78,91 @@ class Extended:
     predictions: tuple[FloatArray, ...]
     heldout_rms_N: float
     held_residual_N: FloatArray
-    # the free baseline re-placed on the force less the kept PLACED_AGAIN effects, if fitted
+    # the free baseline re-placed on the force less the kept effects the elements took part
+    # of, if fitted
     placed: Baseline | None = None
+    # the final design: its parts (the GMS force the effects scale), the kept options in
+    # the ranked order, and the coefficients fitted on the training rows
+    parts: tuple[FittedPart, ...] = ()
+    chosen: tuple[Option, ...] = ()
+    theta: FloatArray = field(default_factory=lambda: np.zeros(0))
+    basis: Basis | None = None
 
 
 def refit(selection: Selection, cfg: DiagnosisConfig) -> Extended:
-    """:func:`refit_kept`; where a Stribeck kept with the slip level free moved the level,
-    it stays only if that beats, as an effect is kept (by the margin, or the small
-    margin and significant), the model refitted without it from the level the selection
-    started from, whose refit searches the level (and a drift's time constant with it)
-    further than the selection's grid: on drift-122 of the independent generator (no
-    Stribeck), a Stribeck at C_v 1.395 beat the drift's design on the grid's levels
-    (0.683 against 0.734 N held out) and was kept second; refitted, 0.6483 N with it
-    against 0.6455 N without. A Stribeck kept after another effect at the baseline's
-    level is judged the same way: it may carry what the level and the first effect's
-    shape, searched together in the refit, carry better (six traces of the independent
-    seeds 111-130 without a Stribeck, drift-114/-120 among them, kept one second or
-    third; none of them does now, and pair_offset_stribeck-121/-123 keep theirs).
-    The model without it has its level searched as far as the one with it (on both
-    tails, from a grid), with no shape to search beside it: on reversal_transient-271
-    (C_v 1.056; a 0.45 N transient over 0.27 mm on a 3.1 N level, noise 0.030 N) the
-    level's coordinate steps left the transient alone at 0.0355 N held out and a 5 %
-    Stribeck at 3.1 mm/s was kept beside it (0.0345 N); searched, C_v 1.055 and 0.0345 N.
-    A drift kept beside another effect is judged the same way (:func:`_judged`)."""
+    """:func:`refit_kept`, then the backward pass for the effects that trade against the
+    slip level (``Policy.level_shape``, ``free_level``): each such effect kept beside
+    another, or kept with the level free, the last kept first, stays only if the model
+    with it beats, by the criterion, the model refitted without it from the level the
+    selection started from, whose level is searched as far as the one with it (on both
+    tails, from a grid): the level, searched further than the selection's grid, may carry
+    what the effect carried (a Stribeck fall kept at a grid's level beside a drift; a
+    drift beside a reversal transient, standing in for the level's rise). The others
+    were judged on the joint design already (:func:`refit_kept`'s backward pass)."""
     extended = refit_kept(selection, cfg)
-    judged = _judged(selection)
-    if judged is None:
-        return extended
-    start = selection.level_from or selection.baseline
-    rest = [
-        (o, h) for o, h in zip(selection.chosen, selection.heldout_rms_N, strict=True)
-        if o.effect is not judged
-    ]  # fmt: skip
-    # from the same baseline, the elements re-placed for the first refit serve the second
-    placed = extended.placed if start is selection.baseline else None
-    without = refit_kept(
-        Selection(start, tuple(o for o, _ in rest), tuple(h for _, h in rest),
-                  selection.last_round),
-        cfg, placed, alone=True,
-    )  # fmt: skip
-    return extended if lowers(cfg, without.held_residual_N, extended.held_residual_N) else without
+    for opt in reversed(selection.chosen):
+        if opt not in selection.chosen or not _judged(selection, opt):
+            continue
+        start = selection.level_from or selection.baseline
+        rest = [
+            (o, h) for o, h in zip(selection.chosen, selection.heldout_rms_N, strict=True)
+            if o is not opt
+        ]  # fmt: skip
+        # from the same baseline, the elements re-placed for the first refit serve this one
+        placed = extended.placed if start is selection.baseline else None
+        fewer = Selection(
+            start, tuple(o for o, _ in rest), tuple(h for _, h in rest), selection.last_round
+        )
+        without = refit_kept(fewer, cfg, placed, alone=True)
+        if not lowers(cfg.selection, without.held_residual_N, extended.held_residual_N):
+            selection, extended = fewer, without
+    return extended
 
 
-def _judged(selection: Selection) -> type[fx.Effect] | None:
-    """The kept effect :func:`refit` judges against the model without it: a Stribeck kept
-    with the slip level free or after another effect; else, beside another effect, the
-    first kept of ``LEVEL_TRADED`` (a Stribeck, else a drift), whose shape the refit
-    searches with the level. A drift kept beside a reversal transient stood in for the
-    level's rise: on reversal_transient-251 of the independent generator (an 11 N
-    transient over 36 um on a 35 N level, C_v 1.256; no drift) a 3 % drift over 6.3 s
-    was chosen first and kept, 0.7126 N held out (noise 0.638 N); the transient alone,
-    its level searched, 0.7082 N at C_v 1.252."""
-    effects = [o.effect for o in selection.chosen]
-    if selection.level_from is not None or fx.Stribeck in effects[1:]:
-        return fx.Stribeck
-    if len(effects) < 2:
-        return None
-    return next((e for e in LEVEL_TRADED if e in effects), None)
+def _judged(selection: Selection, opt: Option) -> bool:
+    """Whether :func:`refit` judges ``opt`` against the model without it: its policy
+    scores it with the level free (``free_level``) and it was kept so or beside another
+    effect, or its shape trades with the level (``level_shape``) and it was kept beside
+    another."""
+    rules, beside = opt.policy, len(selection.chosen) > 1
+    free = rules.free_level and (selection.level_from is not None or beside)
+    return free or (rules.level_shape is not None and beside)
 
 
 def refit_kept(
-    selection: Selection,
-    cfg: DiagnosisConfig,
-    placed: Baseline | None = None,
+    selection: Selection, cfg: DiagnosisConfig, placed: Baseline | None = None,
     alone: bool = False,
-) -> Extended:
-    """All coefficients fitted jointly with every kept effect present; the extended
-    model (GMS kernel, then the effects) simulated along every part.
-
-    Once the slip level is refined with the kept effects present, a later-ranked effect
-    that is no longer admissible on top of the others (it stood in for a slip level the
-    blind baseline had not found) is dropped."""
+) -> Extended:  # fmt: skip
+    """All coefficients fitted jointly with every kept effect present, the backward pass on
+    the joint design (:func:`_prune`), the extended model (GMS kernel, then the effects)
+    simulated along every part."""
     chosen = list(selection.chosen)
     history = list(selection.heldout_rms_N)
     start, placed = _placed_again(selection.baseline, chosen, cfg, placed)
-    baseline = sensed_again(start, chosen)
+    baseline = sensed_again(start, chosen, cfg.selection)
     parts = baseline.parts
     basis = baseline.basis
     if chosen:
         slip = refine_slip_level(baseline, lambda p: _train_rms(p, chosen))
         if slip is not None:
             basis, parts = slip, rebased(baseline, slip)
-        chosen, history = _prune(parts, chosen, history, cfg, baseline.sliding_force_N)
+        chosen, history = _prune(
+            parts, chosen, history, cfg, baseline.sliding_force_N, baseline.prepared.noise_N
+        )
     theta = GramDesign(design(parts, chosen)).fit()
     parts, chosen, theta = _joint_refits(parts, basis, chosen, theta, baseline.presliding_m)
     basis, parts, chosen, theta = _with_level(baseline, basis, parts, chosen, theta, alone)
     forces = _added_forces(parts, chosen, theta)
-    kept = _floored(chosen, forces, cfg.min_effect_fraction * baseline.sliding_force_N)
+    kept = _floored(chosen, forces, cfg.selection.min_effect_fraction * baseline.sliding_force_N)
     if len(kept) < len(chosen):
         history = [h for o, h in zip(chosen, history, strict=True) if o in kept]
         chosen = kept
         theta = GramDesign(design(parts, chosen)).fit()
-        # what a dropped effect carried goes back to the level it was searched with (on
-        # pair_drift_offset-251 of the independent generator a viscous term under the
-        # floor, 0.68 N on a 41 N level, carried the rational onset's slow rise: dropped,
-        # the drift and offset held out 0.653 N for 0.626 N, noise 0.622 N, and a
-        # Stribeck fall of 3 % at 0.06 mm/s beat them)
+        # what a dropped effect carried goes back to the level it was searched with
         basis, parts, chosen, theta = _with_level(baseline, basis, parts, chosen, theta, alone)
         forces = _added_forces(parts, chosen, theta)
     if len(chosen) > 1:
-        order, history = _rank(parts, chosen, forces)
+        order, history = _rank(parts, chosen, forces, cfg.selection)
         if order != chosen:
             chosen = order
             theta = GramDesign(design(parts, chosen)).fit()
@@ -197,7 +170,10 @@ def refit_kept(
     ranked = tuple(Ranked(e, h) for e, h in zip(extensions[: len(chosen)], history, strict=True))
     predictions = tuple(extended_force(fp, gms, extensions) for fp in parts)
     held = held_residual(parts, predictions)
-    return Extended(baseline, ranked, gms, tuple(extensions), predictions, rms(held), held, placed)
+    return Extended(
+        baseline, ranked, gms, tuple(extensions), predictions, rms(held), held, placed, parts,
+        tuple(chosen), theta, basis,
+    )  # fmt: skip
 
 
 def _with_level(
@@ -222,7 +198,7 @@ def _joint_refits(
     presliding_m: float,
 ) -> tuple[tuple[FittedPart, ...], list[Option], FloatArray]:  # fmt: skip
     """``JOINT_REFITS`` times: the GMS force updated to the joint fit ``theta``, the
-    shapes of ``REFIT_SHAPES`` searched again, everything fitted again."""
+    additive effects' shapes searched again, everything fitted again."""
     # the GMS columns stay (their force is refitted), and so do the filters
     base = base_gram(parts, chosen)
     for _ in range(JOINT_REFITS if chosen else 0):
@@ -235,18 +211,17 @@ def _joint_refits(
 def _placed_again(
     baseline: Baseline, chosen: list[Option], cfg: DiagnosisConfig, placed: Baseline | None
 ) -> tuple[Baseline, Baseline | None]:
-    """The free baseline fitted again on the force less the kept ``PLACED_AGAIN``
-    effects' fitted forces (its elements, knots and slip level), if the kept effects
-    then fit the held-out rows better, else ``baseline``; and the one fitted again.
-    ``placed``: one already fitted again on ``baseline`` (by the refit with a Stribeck
-    more, whose fitted forces differ a little), used instead of a new fit (7 of 68 s on
-    reversal_transient-246 of the independent generator)."""
-    again = any(o.effect in PLACED_AGAIN for o in chosen)
+    """The free baseline fitted again on the force less the fitted forces of the kept
+    effects the blind elements took part of (``Policy.elements_take_part``: its elements,
+    knots and slip level), if the kept effects then fit the held-out rows better, else
+    ``baseline``; and the one fitted again. ``placed``: one already fitted again on
+    ``baseline`` (by the refit with one effect more), used instead of a new fit."""
+    again = any(o.policy.elements_take_part for o in chosen)
     if not again or not isinstance(baseline.basis, FreeBasis):
         return baseline, None
-    before = Scorer(baseline.parts, chosen)
+    before = Scorer(baseline.parts, chosen, cfg.selection)
     if placed is not None:
-        better = Scorer(placed.parts, chosen).heldout_rms_N < before.heldout_rms_N
+        better = Scorer(placed.parts, chosen, cfg.selection).heldout_rms_N < before.heldout_rms_N
         return (placed if better else baseline), placed
     filters = [o for o in chosen if o.is_filter]
     less = []
@@ -255,25 +230,24 @@ def _placed_again(
         at = fp.base.values.shape[1]
         for opt in (o for o in chosen if not o.is_filter):
             cols = opt.columns(fp, filters).values
-            if opt.effect in PLACED_AGAIN:
+            if opt.policy.elements_take_part:
                 force += cols @ before.theta[at : at + cols.shape[1]]
             at += cols.shape[1]
         less.append(dataclasses.replace(fp.part, force_N=fp.part.force_N - force))
     prepared = dataclasses.replace(baseline.prepared, parts=tuple(less))
     trial = placed_on(baseline.prepared, fit_baseline(prepared, cfg, None))
-    if Scorer(trial.parts, chosen).heldout_rms_N < before.heldout_rms_N:
+    if Scorer(trial.parts, chosen, cfg.selection).heldout_rms_N < before.heldout_rms_N:
         return trial, trial
     return baseline, trial
 
 
 def _prune(
     parts: Sequence[FittedPart], chosen: list[Option], history: list[float],
-    cfg: DiagnosisConfig, level_N: float,
+    cfg: DiagnosisConfig, level_N: float, noise_N: float,
 ) -> tuple[list[Option], list[float]]:  # fmt: skip
-    """Drop a kept effect that is no longer admissible on top of all the others (it
-    stood in for a slip level the blind baseline had not found, or for an effect kept
-    after it: a ripple whose wavelength follows a drift along a trajectory), the first
-    kept included."""
+    """The backward pass on the joint design: each kept effect (the last first) dropped if
+    it is no longer worth keeping on top of the others (it stood in for a slip level the
+    blind baseline had not found, or for an effect kept after it)."""
     if len(chosen) < 2:
         return chosen, history
     kept = list(chosen)
@@ -281,8 +255,8 @@ def _prune(
         others = [o for o in kept if o is not opt]
         if not others:
             continue
-        trial = Scorer(parts, others)
-        if not admissible(cfg, trial, trial.score(opt), level_N):
+        trial = Scorer(parts, others, cfg.selection)
+        if not admissible(cfg, trial, trial.score(opt), level_N, noise_N):
             kept = others
     return kept, [h for o, h in zip(chosen, history, strict=True) if o in kept]
 
@@ -313,23 +287,20 @@ def _floored(chosen: list[Option], forces: list[FloatArray], floor_N: float) -> 
     """The kept effects whose jointly fitted force (``forces``, :func:`_added_forces`)
     reaches ``floor_N`` somewhere (the selection's floor, ``min_effect_fraction`` of the
     sliding force): an effect kept on the baseline's force may be carried by the others
-    once all are fitted together, and its fitted size go to its bound (a reversal
-    transient of A = 0 N stayed named on pair_drift_offset-119 of the independent
-    generator, its counts read as motion)."""
+    once all are fitted together, and its fitted size go to its bound."""
     return [o for o, f in zip(chosen, forces, strict=True) if float(np.max(np.abs(f))) >= floor_N]
 
 
 def _rank(
-    parts: Sequence[FittedPart], chosen: list[Option], forces: list[FloatArray]
-) -> tuple[list[Option], list[float]]:
-    """The kept effects, the largest force first (the RMS along the trace of what each
-    adds to the jointly fitted model, ``forces``: :func:`_added_forces`; the selection
-    takes first what lowers the held-out RMS most, and a level effect such as a drift is
-    partly carried by the GMS until it is kept), each with the held-out RMS once it is
-    added in that order."""
+    parts: Sequence[FittedPart], chosen: list[Option], forces: list[FloatArray],
+    rules: SelectionConfig,
+) -> tuple[list[Option], list[float]]:  # fmt: skip
+    """The kept effects, the largest force first (the RMS of what each adds to the jointly
+    fitted model, ``forces``), each with the held-out RMS once it is added in that order."""
     size = {id(o): rms(f) for o, f in zip(chosen, forces, strict=True)}
     ranked = sorted(chosen, key=lambda o: size[id(o)], reverse=True)
-    return ranked, [Scorer(parts, ranked[: i + 1]).heldout_rms_N for i in range(len(ranked))]
+    held = [Scorer(parts, ranked[: i + 1], rules).heldout_rms_N for i in range(len(ranked))]
+    return ranked, held
 
 
 def _train_rms(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> float:
@@ -340,13 +311,13 @@ def _train_rms(parts: Sequence[FittedPart], chosen: Sequence[Option]) -> float:
 def _refine_shapes(
     parts: Sequence[FittedPart], chosen: list[Option], presliding_m: float
 ) -> list[Option]:
-    """The shapes of ``REFIT_SHAPES`` searched by training RMS, each trial first made to
+    """The shapes of the additive effects searched by training RMS, each trial first made to
     agree with its fitted size (a dwell's ``reach`` with its gain): searched freely, the
     gain and the time constant trade along a ridge the coordinate steps cannot follow,
     and the shape moves off the gain its windows are computed at."""
     out = list(chosen)
     for i, opt in enumerate(chosen):
-        if opt.effect in REFIT_SHAPES:
+        if not opt.is_filter and opt.effect.SHAPE:
             out[i] = _refine_shape(parts, [*out[:i], *out[i + 1 :]], opt, presliding_m)
     return out
 
@@ -359,7 +330,7 @@ def _refine_shape(
     rest = GramDesign(designs)  # the trials add their columns to it
     # an effect at few events is costed on every row; its size (which its shape must
     # agree with) is still the training rows' fit, as the model's coefficients are
-    whole = GramDesign(every_row(designs)) if opt.effect in WHOLE_ROWS else rest
+    whole = GramDesign(every_row(designs)) if opt.policy.at_events else rest
     filters = [o for o in others if o.is_filter]
     m = rest.lower.size
 
@@ -372,19 +343,37 @@ def _refine_shape(
         return agreed(fit(trial), lambda f: f[0], lambda f: f[1][m:], fit)
 
     first, _, first_cost = settled(opt)
-    if opt.effect in WHOLE_ROWS:  # from the best of its grid's time constants
-        fixed = {k: opt.shape[k] for k in (*opt.effect.SET_BY_SIZE, *DISCRETE) if k in opt.shape}
+    rules = opt.policy
+    if rules.at_events:  # from the best of its grid's time constants
+        fixed = {k: opt.shape[k] for k in (*rules.set_by_size, *rules.discrete) if k in opt.shape}
         grid = {
             tuple(v for k, v in sorted(shape.items()) if k not in fixed): {**shape, **fixed}
-            for shape in opt.effect.shape_grid(parts[0].ctx, fx.Leftover.empty(), presliding_m)
+            for shape in rules.shape_grid(parts[0].ctx, Leftover.empty(), presliding_m)
         }
         for shape in grid.values():
             trial, _, cost = settled(Option(opt.effect, shape))
             if cost < first_cost:
                 first, first_cost = trial, cost
-    bounds = opt.effect.shape_bounds(parts[0].ctx, presliding_m)
-    steps = opt.effect.shape_steps(parts[0].ctx)
+    bounds = rules.shape_bounds(parts[0].ctx, presliding_m)
+    steps = rules.shape_steps(parts[0].ctx)
     best = local_search(
-        first, lambda t: settled(t)[2], first_cost, bounds, opt.effect.SET_BY_SIZE, steps
+        first, lambda t: settled(t)[2], first_cost, bounds, rules.set_by_size, steps
     )
     return settled(best[0])[0]
+
+
+def sensed_again(baseline: Baseline, chosen: list[Option], rules: SelectionConfig) -> Baseline:
+    """``baseline`` with its elements fitted again through ``chosen``'s filters
+    (:func:`~.baseline.fitted_through`) if ``chosen`` then fits the held-out rows better;
+    else ``baseline`` (also without a filter kept, or with a table baseline)."""
+    filters = [o for o in chosen if o.is_filter]
+    if not filters or not isinstance(baseline.basis, FreeBasis):
+        return baseline
+    sensed = functools.partial(through, filters)
+    trial = fitted_through(baseline, sensed, [o.effect.name for o in filters])
+    if (
+        Scorer(trial.parts, chosen, rules).heldout_rms_N
+        < Scorer(baseline.parts, chosen, rules).heldout_rms_N
+    ):
+        return trial
+    return baseline

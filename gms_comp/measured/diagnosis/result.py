@@ -9,21 +9,19 @@ from typing import Any
 from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams
 from gms_comp.measured.diagnosis.coverage import Caveat
+from gms_comp.measured.diagnosis.detection import Limit
+from gms_comp.measured.diagnosis.intervals import Intervals
 from gms_comp.measured.diagnosis.refit import Ranked
 from gms_comp.measured.diagnosis.structure import Structure
+from gms_comp.measured.policies import POLICIES
 from gms_comp.runtime import effects as fx
 
 
 @dataclass(frozen=True)
 class Diagnosis:
-    """Result of :func:`~gms_comp.measured.diagnosis.run.diagnose`; :meth:`to_json` gives the
-    spec's keys.
-
-    ``effect`` is the first kept effect's name, ``none`` when nothing was kept and the
-    residual is noise-like, or ``unknown`` when the residual left by the best extension
-    still has structure (``structure`` says where; ``ranked`` then holds the partial
-    candidates).
-    """
+    """Result of :func:`~gms_comp.measured.diagnosis.run.diagnose` (:meth:`to_json`: the
+    spec's keys): ``effect`` the first kept effect's name, ``none``, or ``unknown`` (the
+    residual still has structure; ``ranked`` then holds the partial candidates)."""
 
     effect: str
     ranked: tuple[Ranked, ...]
@@ -44,6 +42,10 @@ class Diagnosis:
     extension_context: dict[str, float] = field(default_factory=dict)
     # what the trace's motion cannot tell apart among the ranked effects (:mod:`.coverage`)
     caveats: tuple[Caveat, ...] = ()
+    # each ranked effect's 95 % intervals (:mod:`.intervals`)
+    intervals: tuple[Intervals, ...] = ()
+    # each catalogue effect's detection limit on this trace (:mod:`.detection`)
+    limits: dict[str, Limit] = field(default_factory=dict)
 
     @property
     def noise_rms_N(self) -> float:
@@ -65,9 +67,13 @@ class Diagnosis:
                     "effect": c.effect.name,
                     "parameters": c.effect.parameters(),
                     "heldout_rms_N": c.heldout_rms_N,
+                    "intervals_95": sure.to_json(),
+                    "interval_at_bound": list(sure.at_bound),
                 }
                 | ({"in_context": figures} if figures else {})
-                for c, figures in zip(self.ranked, self.in_context, strict=True)
+                for c, figures, sure in zip(
+                    self.ranked, self.in_context, self.intervals, strict=True
+                )
             ],
             "parameters": self.ranked[0].effect.parameters() if named else {},
             "baseline_rms_N": self.baseline_rms_N,
@@ -85,6 +91,9 @@ class Diagnosis:
             "phases": self.phases,
             "structure": self.structure.to_json(),
             "caveats": [c.to_json() for c in self.caveats],
+            "detection_limits": {name: limit.figures for name, limit in self.limits.items()},
+            "detection_limits_range": {name: limit.span for name, limit in self.limits.items()},
+            "to_see_smaller": {name: POLICIES[name].to_see_smaller for name in self.limits},
             "candidates_tried": self.tried,
             "seconds": self.seconds,
         }

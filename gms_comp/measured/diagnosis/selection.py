@@ -1,24 +1,14 @@
-"""Stage 4: forward selection of catalogue effects on held-out samples.
+"""Stage 4: forward selection of catalogue effects by the criterion (:mod:`.criterion`).
 
-Each round scores every remaining effect over its shape grid on the design of the
-effects kept so far, refines the best shape of each effect that helps by a bounded local
-search, and keeps the admissible effect with the lowest held-out RMS. An effect is
-admissible if it lowers the held-out RMS by more than ``margin`` (relative), or by a
-smaller but significant step (t statistic over held-out chunks); an effect that acts on
-few samples (a dwell gain at break-aways; a Stribeck fall on a trace with few fast moves,
-where it departs from the GMS force: ``Effect.departure``) is also judged where it acts,
-at every event by a fit that did not see it (the held-out rows may hold none of its
-events); and in any case it must change the model force somewhere by
-``min_effect_fraction`` of the sliding force (on clean traces tiny stray terms always
-lower the held-out error a little). An effect
-that names the rows where the motion tells it from others (``Effect.told_apart``: a
-direction asymmetry, at speeds the trace reaches both ways) must lower it there too. In the
-first ``FREE_LEVEL_ROUNDS`` rounds Stribeck is also scored with the baseline's slip
-level free (:mod:`.level_free`); where that wins, the selection goes on from that level.
-After each effect kept, the GMS force the effects scale is the one fitted beside it.
-Every search here is bounded: rounds by ``max_effects``, grids by the catalogue, local search
-by ``REFINE_STEPS`` (or an effect's own ``shape_steps``) x ``MAX_PASSES`` inside each
-effect's shape bounds.
+Each round scores every remaining effect over its policy's shape grid on the design of the
+effects kept so far, refines the best shape of each by a bounded local search (an effect
+acting at few events: from all of them, its shape agreeing with its size), and keeps the
+one worth keeping with the lowest held-out RMS. In the first ``free_level_rounds`` rounds
+an effect whose policy says so (``free_level``) is also scored with the baseline's slip
+level free (:mod:`.level`); where that wins, the selection goes on from that level. After
+each effect kept, the GMS force the effects scale is the one fitted beside it. Every search
+is bounded: rounds by ``max_effects``, grids by the policies, local search by
+``REFINE_STEPS`` (or the policy's ``shape_steps``) x ``MAX_PASSES`` inside its bounds.
 """
 
 from __future__ import annotations
@@ -31,7 +21,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gms_comp.arrays import FloatArray
-from gms_comp.measured.diagnosis.agreement import agreed, agreement
 from gms_comp.measured.diagnosis.baseline import (
     Baseline,
     FittedPart,
@@ -47,36 +36,26 @@ from gms_comp.measured.diagnosis.candidates import (
     options,
 )
 from gms_comp.measured.diagnosis.config import DiagnosisConfig
+from gms_comp.measured.diagnosis.criterion import admissible, agreed, agreement, consistent, lowers
 from gms_comp.measured.diagnosis.design import rms
-from gms_comp.measured.diagnosis.gain import lowers, lowers_locally
-from gms_comp.measured.diagnosis.level_free import (
-    FREE_LEVEL_ROUNDS,
+from gms_comp.measured.diagnosis.level import (
     FreeLevel,
-    stribeck_with_level,
+    with_free_level,
 )
-from gms_comp.measured.diagnosis.prepare import noise_at_rest
-from gms_comp.runtime import effects as fx
+from gms_comp.measured.policies import POLICIES, policy
+from gms_comp.runtime.effects import Effect
 
 # Relative steps of the local search on shape parameters after the grid, and the most
 # passes over the parameters at each step.
 REFINE_STEPS = (1.3, 1.08)
 MAX_PASSES = 4
-# How far apart (a factor) a shape and the one its fitted size implies may be for the
-# effect to be kept (:func:`.agreement.agreed` steps them together first).
-CONSISTENT_WITHIN = 1.5
 # An effect acting locally has its shape from the LOCAL_STARTS best of its grid.
 LOCAL_STARTS = 3
-# Shape keys the local search does not step (a filter's order, a dwell gain's form). An
-# effect judged where it acts searches each value's shape (a form worth an effect first,
-# then by held-out RMS). Else, where the grid's best lowers the held-out RMS by the
-# margin, the best grid trial of each value is refined: a grid 1.6x apart in cut-off
-# picked a filter's order by which grid point fell nearer its delay (12 of 30 independent
-# traces one order off, the cut-off 17-56 % off); refined, each order's cut-off decides
-# (seeds 122, 128). Only the orders whose grid best held out within 1.25x of the best
-# were refined once: where the filter is large the true order's grid best was further
-# off (sensor_lowpass-188: baseline 4.58 N, grid bests 0.77 N for order 4 and 1.07 N for
-# order 3; refined, 0.63 and 0.55 N): 7 of 70 traces one order off.
-DISCRETE = ("order", "kept_through_turns")
+# A policy's discrete keys (a filter's order, a dwell gain's form) are not stepped: an
+# effect judged where it acts searches each value's shape (one worth an effect first,
+# then by held-out RMS); else, where the grid's best lowers the held-out RMS by the
+# margin, each value's best grid trial is refined (a coarse grid picks a filter's order
+# by which grid point falls nearer its delay; refined, each order's cut-off decides).
 
 Progress = Callable[[str], None]
 
@@ -115,7 +94,7 @@ def local_search(
         for _ in range(MAX_PASSES):
             improved = False
             for key in opt.shape:
-                if key in DISCRETE or key in fixed:
+                if key in opt.policy.discrete or key in fixed:
                     continue
                 lo, hi = bounds.get(key, (0.0, np.inf))
                 for factor in (1.0 / step, step):
@@ -131,37 +110,6 @@ def local_search(
     return best, best_cost
 
 
-def admissible(cfg: DiagnosisConfig, scorer: Scorer, trial: Trial, level_N: float) -> bool:
-    """Whether ``trial`` is worth an effect (see the module docstring)."""
-    rms0, held0 = scorer.heldout_rms_N, scorer.held_residual_N
-    local = acts_locally(trial)
-    if trial.heldout_rms_N >= rms0 and not local:
-        return False
-    worth = lowers(cfg, held0, trial.held_residual_N)
-    if not worth and local:
-        # judged where it acts, at every event by a fit without it: an effect at a few
-        # events may have none or one held out (and the held-out RMS not lowered)
-        judge = scorer.judge  # on every sample
-        local0, local1 = judge.left_out(trial)
-        main = judge.parts[0].part
-        noise = noise_at_rest(main.force_N, main.path_position_m)
-        worth = lowers_locally(cfg, local0, local1, noise)
-    apart = scorer.told_apart(trial.option)
-    if worth and apart is not None:
-        # and where the motion tells it from the effects it could stand in for
-        worth = bool(np.any(apart)) and lowers(cfg, held0[apart], trial.held_residual_N[apart])
-    if not worth or not consistent(scorer, trial):
-        return False
-    if not trial.option.is_filter:
-        # an effect sized against the friction it scales (a dwell's break-away gain)
-        m = scorer.theta.size
-        effect = trial.option.effect.from_coefficients(trial.theta[m:], trial.option.shape)
-        size = effect.relative_size(scorer.parts[0].ctx)
-        if size is not None and size < cfg.min_effect_fraction:
-            return False
-    return float(np.max(np.abs(scorer.change(trial)))) >= cfg.min_effect_fraction * level_N
-
-
 def select(
     baseline: Baseline, cfg: DiagnosisConfig, progress: Progress | None = None,
     start: Selection | None = None,
@@ -170,17 +118,17 @@ def select(
     rounds of ``start`` where given (``baseline``'s selection stopped by a smaller
     ``max_effects``), as if it had not stopped."""
     was = start or Selection(baseline, (), (), ())
-    drive = baseline.prepared.drive
-    # a drive force has its mass in the baseline; only a drive command can lead the force
-    pool = [e for e in fx.CATALOGUE.values() if e is not (fx.Inertia if drive else fx.DriveLag)]
+    kind = baseline.prepared.force_kind
+    pool = [p.effect for p in POLICIES.values() if kind in p.force_kinds]
     chosen, history, last = list(was.chosen), list(was.heldout_rms_N), list(was.last_round)
     pool = [e for e in pool if e not in {o.effect for o in chosen}]
     baseline, level_from, first, levels = was.baseline, was.level_from, was.first_round, was.levels
     gms_theta, placed = was.gms_theta, _placed(baseline)
     parts, every = _gms_from(baseline, gms_theta, placed)
     level = (level_from or baseline).sliding_force_N
+    noise = baseline.prepared.noise_N
     while pool and len(chosen) < cfg.max_effects:
-        scorer = Scorer(parts, chosen, every)
+        scorer = Scorer(parts, chosen, cfg.selection, every)
         last = []
         for i, effect in enumerate(pool):
             if progress:
@@ -188,37 +136,44 @@ def select(
             trials = scorer.score_all(options(effect, scorer, baseline.presliding_m))
             if not trials:
                 continue
-            best = best_held_out(scorer.theta.size, trials)
-            if acts_locally(best):
+            best = best_held_out(scorer.theta.size, trials, cfg.selection)
+            if acts_locally(best, cfg.selection):
                 # its shape from all its events (the held-out rows may hold one or none),
                 # each form's apart: the forms worth an effect first, then held out
                 shaped = [_local_shape(scorer, f, baseline.presliding_m) for f in _forms(trials)]
-                best = min(shaped, key=lambda t: (not admissible(cfg, scorer, t, level),
+                best = min(shaped, key=lambda t: (not admissible(cfg, scorer, t, level, noise),
                                                   t.heldout_rms_N))  # fmt: skip
             elif best.heldout_rms_N < scorer.heldout_rms_N:
                 # each order refined only where the effect could be kept by its margin
                 # alone (each is a local search: 10 % of a typical trace's time)
-                big = best.heldout_rms_N <= (1.0 - cfg.margin) * scorer.heldout_rms_N
+                big = best.heldout_rms_N <= (1.0 - cfg.selection.margin) * scorer.heldout_rms_N
                 starts = _per_value(trials) if big else [best]
                 refined = [_refine(scorer, t, baseline.presliding_m) for t in starts]
                 best = _consistent(scorer, min(refined, key=lambda t: t.heldout_rms_N))
             last.append(best)
-        kept = [t for t in last if admissible(cfg, scorer, t, level)]
+        kept = [t for t in last if admissible(cfg, scorer, t, level, noise)]
         first = first if chosen else (scorer.heldout_rms_N, tuple(kept))
         take = min(kept, key=lambda t: t.heldout_rms_N) if kept else None
-        # where Stribeck at the baseline's level is taken, the refit searches its level
-        searched = fx.Stribeck in pool and len(chosen) < FREE_LEVEL_ROUNDS
-        if searched and (take is None or take.option.effect is not fx.Stribeck):
-            free = _free_level(cfg, baseline, scorer, last, level, levels)
+        # an effect at another slip level (where taken at the baseline's level, the
+        # refit searches its level)
+        for effect in (
+            (e for e in pool if policy(e).free_level)
+            if len(chosen) < cfg.selection.free_level_rounds
+            else ()
+        ):
+            if take is not None and take.option.effect is effect:
+                break
+            free = _free_level(cfg, effect, baseline, scorer, last, level, levels)
             if free is not None:
-                # Stribeck at another slip level: the selection goes on from that level
+                # the selection goes on from that level
                 level_from = level_from or baseline
                 baseline, take = free.baseline, free.trial
                 placed = _placed(baseline)
-                last = [take if t.option.effect is fx.Stribeck else t for t in last]
+                last = [take if t.option.effect is effect else t for t in last]
                 if not chosen:  # the first round's near tie is judged against it
-                    others = (t for t in first[1] if t.option.effect is not fx.Stribeck)
+                    others = (t for t in first[1] if t.option.effect is not effect)
                     first = (first[0], (*others, take))
+                break
         if take is None:
             break
         chosen.append(take.option)
@@ -248,11 +203,8 @@ def _gms_from(
     """``baseline``'s parts with the GMS force (and elements) of the coefficients
     ``theta`` (a joint fit with the effects kept; None: the baseline's own), and the
     same along every sample (``placed``, its GMS force refitted when first asked).
-    The effects that scale the GMS force scale the one fitted beside the kept effects:
-    on pair_offset_stribeck-259 of the independent generator the baseline fitted alone
-    absorbed an offset of 30 % of the level into its limits (its force 17.8 N off where
-    fitted beside the offset), and a Stribeck fall on it held out 0.988 N against the
-    0.958 N of one on the force fitted beside the offset (noise 0.953 N)."""
+    The effects that scale the GMS force scale the one fitted beside the kept effects (the
+    baseline fitted alone takes part of a large offset into its limits)."""
     basis = baseline.basis
 
     def gms(parts: tuple[FittedPart, ...]) -> tuple[FittedPart, ...]:
@@ -263,45 +215,40 @@ def _gms_from(
 
 
 def _free_level(
-    cfg: DiagnosisConfig, baseline: Baseline, scorer: Scorer, rivals: Sequence[Trial],
-    level_N: float, fitted: dict[tuple[float, float], Baseline],
+    cfg: DiagnosisConfig, effect: type[Effect], baseline: Baseline, scorer: Scorer,
+    rivals: Sequence[Trial], level_N: float, fitted: dict[tuple[float, float], Baseline],
 ) -> FreeLevel | None:  # fmt: skip
-    """Stribeck with the slip level free (:mod:`.level_free`), shape refined, if it is
-    admissible on its level and lowers, as an effect is kept (:func:`~.gain.lowers`), the
-    held-out residual of the best of the design so far and every other effect's best
-    trial of the round, both also on Stribeck's level and where the design without
-    Stribeck fits best on the grid (by 5 % of the RMS before: near the noise, on
-    pair_offset_stribeck-259, 0.958 N against a direction asymmetry's 0.977 N, noise
-    0.953 N, was not enough). A level's gain alone is not Stribeck's: on
-    position_ripple-117 of the independent generator (no Stribeck), round 2 went from
-    0.502 N held out to 0.402 N at C_v 1.1 with Stribeck and to 0.402 N without; judged
-    against the round's best only, Stribeck was kept and, carrying the level, ranked first."""
-    free = stribeck_with_level(baseline, scorer, fitted)
+    """``effect`` with the slip level free (:mod:`.level`), shape refined, if it is worth
+    keeping on its level and lowers, by the criterion (:func:`~.criterion.lowers`), the
+    held-out residual of the design so far and of every other effect's best trial of the
+    round, both also on its level and where the design without it fits best on the grid:
+    a level's gain alone is not the effect's."""
+    free = with_free_level(effect, baseline, scorer, fitted)
     if free is None or free.trial.heldout_rms_N >= free.scorer.heldout_rms_N:
         return None
     trial = _consistent(free.scorer, _refine(free.scorer, free.trial, free.baseline.presliding_m))
-    others = [t for t in rivals if t.option.effect is not fx.Stribeck]
+    others = [t for t in rivals if t.option.effect is not effect]
     here = [scorer.held_residual_N, *(t.held_residual_N for t in others)]
     levels = [free.scorer] if free.plain is free.scorer else [free.scorer, free.plain]
     there = [s.held_residual_N for s in levels]
     there += [s.score(t.option).held_residual_N for s in levels for t in others]
-    if not lowers(cfg, min(here + there, key=rms), trial.held_residual_N):
+    if not lowers(cfg.selection, min(here + there, key=rms), trial.held_residual_N):
         return None
-    if not admissible(cfg, free.scorer, trial, level_N):
+    if not admissible(cfg, free.scorer, trial, level_N, baseline.prepared.noise_N):
         return None
     return dataclasses.replace(free, trial=trial)
 
 
 def _per_value(trials: Sequence[Trial]) -> list[Trial]:
-    """The best trial of each value of the ``DISCRETE`` keys."""
+    """The best trial of each value of the policy's discrete keys."""
     return [min(f, key=lambda t: t.heldout_rms_N) for f in _forms(trials)]
 
 
 def _forms(trials: Sequence[Trial]) -> list[list[Trial]]:
-    """``trials`` by the values of their ``DISCRETE`` keys, in order."""
+    """``trials`` by the values of their policy's discrete keys, in order."""
     forms: dict[tuple[float, ...], list[Trial]] = {}
     for t in trials:
-        key = tuple(t.option.shape[k] for k in DISCRETE if k in t.option.shape)
+        key = tuple(t.option.shape[k] for k in t.option.policy.discrete if k in t.option.shape)
         forms.setdefault(key, []).append(t)
     return list(forms.values())
 
@@ -314,11 +261,9 @@ def _refine(scorer: Scorer, best: Trial, presliding_m: float) -> Trial:
         trials[id(opt)] = trial
         return trial.heldout_rms_N
 
-    effect, ctx = best.option.effect, scorer.parts[0].ctx
-    bounds = effect.shape_bounds(ctx, presliding_m)
-    opt, _ = local_search(
-        best.option, cost, best.heldout_rms_N, bounds, (), effect.shape_steps(ctx)
-    )
+    rules, ctx = best.option.policy, scorer.parts[0].ctx
+    bounds = rules.shape_bounds(ctx, presliding_m)
+    opt, _ = local_search(best.option, cost, best.heldout_rms_N, bounds, (), rules.shape_steps(ctx))
     return best if opt is best.option else trials[id(opt)]
 
 
@@ -331,7 +276,7 @@ def _local_shape(scorer: Scorer, trials: Sequence[Trial], presliding_m: float) -
     constant trade along a ridge, and a grid point off agreement lay off it (tau 0.5 s
     at a gain of 0.1 for a true 0.06 s and 0.05)."""
     m = scorer.theta.size
-    effect = trials[0].option.effect
+    rules = trials[0].option.policy
     settled: dict[tuple[tuple[str, float], ...], Trial] = {}
 
     def settle(opt: Option) -> Trial:
@@ -348,15 +293,15 @@ def _local_shape(scorer: Scorer, trials: Sequence[Trial], presliding_m: float) -
         trial = settle(opt)
         return scorer.whole_rms(trial.option) if consistent(scorer, trial) else np.inf
 
-    free = [k for k in effect.SHAPE if k not in effect.SET_BY_SIZE]
+    free = [k for k in rules.effect.SHAPE if k not in rules.set_by_size]
     starts: dict[tuple[float, ...], Trial] = {}
     for t in sorted(trials, key=lambda t: agreement(t.option, t.theta[m:])[1]):
         starts.setdefault(tuple(t.option.shape[k] for k in free), t)
     # settled: the LOCAL_STARTS best as they are (settling costs up to four fits each)
     ranked = sorted(starts.values(), key=lambda t: scorer.whole_rms(t.option))
     start = min((t.option for t in ranked[:LOCAL_STARTS]), key=cost)
-    bounds = effect.shape_bounds(scorer.parts[0].ctx, presliding_m)
-    opt, _ = local_search(start, cost, cost(start), bounds, effect.SET_BY_SIZE)
+    bounds = rules.shape_bounds(scorer.parts[0].ctx, presliding_m)
+    opt, _ = local_search(start, cost, cost(start), bounds, rules.set_by_size)
     return _polish(scorer, [settle(opt), *trials], bounds)
 
 
@@ -364,15 +309,11 @@ def _polish(
     scorer: Scorer, trials: Sequence[Trial], bounds: dict[str, tuple[float, float]]
 ) -> Trial:
     """The best of ``trials`` by :meth:`~.candidates.Scorer.whole_rms` among those whose
-    shape agrees with their size within ``CONSISTENT_WITHIN`` (the first when none
+    shape agrees with their size within ``consistent_within`` (the first when none
     does), then a bounded local search of every key, the size-set ones too, over shapes
-    that stay within that agreement. Settling walks each shape to exact agreement, and
-    where the effect's column is attenuated against the truth (a dwell gain's fitted
-    coefficient below the gain its windows are computed at) it walks down the gain:
-    on dwell_time-130 of the independent generator the agreed ridge's best dropped the
-    RMS at the starts by 10 %, a shape off it within the factor (the truth's own) by
-    19 %. For an effect whose size sets no key, this is the local search again from
-    the best consistent grid trial."""
+    that stay within that agreement (settling each shape to exact agreement walks down
+    the gain where the column is attenuated against the truth's). For an effect whose
+    size sets no key, this is the local search again from the best consistent trial."""
     scored: dict[tuple[tuple[str, float], ...], Trial] = {}
 
     def fitted(opt: Option) -> Trial:
@@ -402,14 +343,3 @@ def _consistent(scorer: Scorer, trial: Trial) -> Trial:
     """``trial`` with its shape made to agree with its fitted size (:func:`agreed`)."""
     m = scorer.theta.size
     return agreed(trial, lambda t: t.option, lambda t: t.theta[m:], scorer.score)
-
-
-def consistent(scorer: Scorer, trial: Trial) -> bool:
-    """Whether ``trial``'s shape agrees with its size within ``CONSISTENT_WITHIN``."""
-    return _agreement(scorer, trial)[1] <= CONSISTENT_WITHIN
-
-
-def _agreement(scorer: Scorer, trial: Trial) -> tuple[dict[str, float], float]:
-    """The shape that agrees with ``trial``'s fitted size, and the largest factor
-    between it and ``trial``'s (1: they agree; a filter always does)."""
-    return agreement(trial.option, trial.theta[scorer.theta.size :])

@@ -1,9 +1,9 @@
 """The catalogue of measured-data effects, as extensions on top of a GMS friction force.
 
 Each effect of ../shared/spec/measured-data.md is one module of this package: a frozen
-dataclass holding its parameters (names and SI units as the spec gives them), its form,
-the bounds of its fitted coefficients and the shapes the diagnosis searches
-(:mod:`.base` is the interface). :data:`CATALOGUE` registers them by name: adding an
+dataclass holding its parameters (names and SI units as the spec gives them) and its form
+(:mod:`.base` is the interface); how the diagnosis fits it is its policy
+(:mod:`gms_comp.measured.policies`). :data:`CATALOGUE` registers them by name: adding an
 effect is one module plus one line here. :mod:`.path` computes what an effect sees along
 a trajectory; :mod:`.stream` applies a list of effects, batch or per sample.
 """
@@ -23,7 +23,6 @@ from gms_comp.runtime.effects.drift import Drift
 from gms_comp.runtime.effects.drive_lag import DriveLag
 from gms_comp.runtime.effects.dwell_time import DwellTime
 from gms_comp.runtime.effects.inertia import Inertia
-from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.offset import Offset
 from gms_comp.runtime.effects.path import DEFAULT_STANDSTILL_SPEED_M_S, Context
 from gms_comp.runtime.effects.position_ripple import PositionRipple
@@ -55,7 +54,7 @@ CATALOGUE: dict[str, type[Effect]] = {
 __all__ = [
     "CATALOGUE", "DEFAULT_STANDSTILL_SPEED_M_S", "Context", "DirectionAsymmetry", "Drift",
     "DriveLag", "DwellTime", "Effect", "ExtensionError", "ExtensionStream", "FilterEffect",
-    "FloatArray", "Inertia", "Leftover", "Offset", "PositionRipple", "ReversalTransient",
+    "FloatArray", "Inertia", "Offset", "PositionRipple", "ReversalTransient",
     "SensorLowpass", "Stribeck", "Viscous", "apply_extensions", "check_extensions",
     "effect_from_dict", "effect_to_dict",
 ]  # fmt: skip

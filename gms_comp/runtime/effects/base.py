@@ -1,12 +1,11 @@
-"""The interface of a catalogue effect: its form, parameters, fit columns, bounds, grids.
+"""The interface of a catalogue effect: its form, parameters and basis columns.
 
 An additive effect is a linear combination of *basis* columns whose shape depends on a
 few nonlinear parameters (the ripple's wavelength, the transient's length, ...):
-``force + basis(ctx, shape) @ coefficients``. The diagnosis fits the coefficients by
-bounded least squares over those same columns (``COEFFICIENT_LOWER`` holds the physical
-meaning: a Stribeck ratio is above 1, a transient amplitude positive), so a fitted effect
-and the one applied afterwards are one formula. A :class:`FilterEffect` is a linear
-filter of the whole force instead.
+``force + basis(ctx, shape) @ coefficients``. The diagnosis fits the coefficients over
+those same columns (its bounds, grids and judgement are the effect's diagnosis policy,
+:mod:`gms_comp.measured.policies`), so a fitted effect and the one applied afterwards are
+one formula. A :class:`FilterEffect` is a linear filter of the whole force instead.
 
 The forms that scale the friction (stribeck, dwell_time, drift) act on the GMS force
 ``ctx.gms_force_N``: in steady sliding a GMS force equals its element limits times the
@@ -14,14 +13,13 @@ velocity level, so scaling the force is scaling the limits; at a break-away it s
 peak. That keeps the GMS kernel (:mod:`gms_comp.gms`) untouched.
 
 Adding an effect: one module in this package with a subclass of :class:`Effect` (its
-form, parameters, coefficient bound, shape grid and shape bounds) and one line in
-``gms_comp/effects/__init__.py``'s ``CATALOGUE``.
+form and parameters) and one line in ``CATALOGUE`` (``__init__``), plus its diagnosis
+policy beside the diagnosis.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import MISSING, dataclass, fields
 from typing import ClassVar, Protocol
 
@@ -29,9 +27,8 @@ import numba
 import numpy as np
 from scipy import signal
 
-from gms_comp.arrays import BoolArray, FloatArray
+from gms_comp.arrays import FloatArray
 from gms_comp.gms import GmsParams
-from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
 
 Shape = dict[str, float]
@@ -45,26 +42,14 @@ STEPPED_TOGETHER = 8
 class Effect:
     """Base of the catalogue: ``force + basis(ctx, shape) @ coefficients``.
 
-    Subclasses name their nonlinear shape parameters in ``SHAPE``, map between the fitted
-    coefficients and their named parameters, and say where the diagnosis searches the
-    shape (:meth:`shape_grid`, :meth:`shape_bounds`).
+    Subclasses name their nonlinear shape parameters in ``SHAPE`` and map between the
+    basis coefficients and their named parameters.
     """
 
     name: ClassVar[str]
     SHAPE: ClassVar[tuple[str, ...]] = ()
-    # The shape parameters :meth:`consistent_shape` sets from the size (not searched
-    # where the shape is made to agree with the size).
-    SET_BY_SIZE: ClassVar[tuple[str, ...]] = ()
     # An effect of the measurement chain, not of the contact: a compensator does not add it.
     measurement_only: ClassVar[bool] = False
-    # Lower bound of every fitted coefficient (its physical meaning, held inside the fit).
-    COEFFICIENT_LOWER: ClassVar[float] = -math.inf
-    # Whether :meth:`shape_grid` reads what the design leaves (else it is given
-    # :meth:`Leftover.empty`: its orthonormal basis costs a factorisation per design).
-    READS_LEFTOVER: ClassVar[bool] = False
-    # Whether :meth:`basis` reads the GMS (its force or its elements): if not, the basis
-    # is the motion's alone, the same under every baseline fitted to it.
-    BASIS_READS_GMS: ClassVar[bool] = True
 
     @classmethod
     def basis(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray:
@@ -80,44 +65,6 @@ class Effect:
         """The basis coefficients of this effect."""
         raise NotImplementedError
 
-    @classmethod
-    def shape_grid(cls, ctx: Context, left: Leftover, presliding_m: float) -> list[Shape]:
-        """Candidate shapes the diagnosis tries (``left``: what the design leaves unexplained)."""
-        return [{}]
-
-    @classmethod
-    def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
-        """The range of each shape parameter the diagnosis's local search may reach."""
-        return {}
-
-    @classmethod
-    def shape_steps(cls, ctx: Context) -> tuple[float, ...] | None:
-        """Relative steps, shrinking, of the local search on the shape after the grid;
-        None: the diagnosis's own (an effect whose grid is finer than they are says so)."""
-        return None
-
-    @classmethod
-    def consistent_shape(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Shape:
-        """The shape that agrees with the fitted ``coefficients`` (an effect whose shape
-        depends on its own size, as a dwell gain's windows do on the gain); ``shape``
-        itself where size and shape are independent."""
-        return dict(shape)
-
-    @classmethod
-    def departure(cls, ctx: Context, shape: Mapping[str, float]) -> FloatArray | None:
-        """Where the effect departs from what the baseline carries, as values along
-        ``ctx`` whose large rows are where it acts (None: its basis). A column that is
-        the GMS force scaled most of the time (a Stribeck bump at slow speeds) acts
-        where it stops scaling it."""
-        return None
-
-    @classmethod
-    def told_apart(cls, ctxs: Sequence[Context]) -> list[BoolArray] | None:
-        """The rows along each of ``ctxs`` (the parts of one diagnosis, judged together)
-        whose motion can tell this effect from the others it could stand in for, where
-        the diagnosis must see its gain (None: every row)."""
-        return None
-
     def shape(self) -> Shape:
         """The shape parameters of this effect."""
         return {k: getattr(self, k) for k in self.SHAPE}
@@ -130,16 +77,6 @@ class Effect:
             for f in fields(self)
             if f.default is MISSING or getattr(self, f.name) != f.default
         }
-
-    def in_context(self, ctx: Context) -> dict[str, float]:
-        """What the parameters come to along ``ctx``, where that is what a trace
-        determines better than the parameters themselves (none by default)."""
-        return {}
-
-    def relative_size(self, ctx: Context) -> float | None:
-        """The effect's size along ``ctx`` as a fraction of the friction it scales, where
-        that is how it is judged worth keeping (``None``: by the force it changes)."""
-        return None
 
     def apply(self, ctx: Context, force_N: FloatArray) -> FloatArray:
         """The measured force this effect makes of ``force_N`` (batch)."""
@@ -228,18 +165,3 @@ def _filter_columns(b: FloatArray, a: FloatArray, x: FloatArray, z: FloatArray) 
             wl[j] = b[m - 1] * xt[j] - a[m - 1] * yt[j]
         z, w = w, z
     return y
-
-
-def top_speed(ctx: Context) -> float:
-    """The largest speed along ``ctx`` (m/s), at least a tiny positive number."""
-    return max(float(np.max(np.abs(ctx.velocity_m_s))), 1e-12)
-
-
-def duration(ctx: Context) -> float:
-    """The time ``ctx`` spans (s), at least one sample time."""
-    return max(float(ctx.time_s[-1] - ctx.time_s[0]), ctx.sample_time_s)
-
-
-def stroke(ctx: Context) -> float:
-    """The range of positions along ``ctx`` (m)."""
-    return float(np.ptp(ctx.position_m))

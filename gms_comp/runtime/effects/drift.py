@@ -11,8 +11,7 @@ import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.config import in_range, positive
-from gms_comp.runtime.effects.base import Effect, Shape, duration
-from gms_comp.runtime.effects.leftover import Leftover
+from gms_comp.runtime.effects.base import Effect
 from gms_comp.runtime.effects.path import Context
 
 
@@ -22,7 +21,6 @@ class Drift(Effect):
 
     name: ClassVar[str] = "drift"
     SHAPE: ClassVar[tuple[str, ...]] = ("tau_s",)
-    COEFFICIENT_LOWER: ClassVar[float] = -1.0
     kappa: float = field(metadata=in_range(-1.0, 100.0))
     tau_s: float = field(metadata=positive(1e7))
 
@@ -39,16 +37,3 @@ class Drift(Effect):
     def coefficients(self) -> FloatArray:
         """``[kappa]``."""
         return np.array([self.kappa])
-
-    @classmethod
-    def shape_grid(cls, ctx: Context, left: Leftover, presliding_m: float) -> list[Shape]:
-        """Time constants from 1/50 to 2 trace lengths."""
-        t = duration(ctx)
-        return [{"tau_s": float(tau)} for tau in np.geomspace(t / 50, 2 * t, 10)]
-
-    @classmethod
-    def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
-        """tau within 1/200 and 2 trace lengths (a slower drift is a ramp: its kappa and
-        tau trade off and neither means anything)."""
-        t = duration(ctx)
-        return {"tau_s": (t / 200, 2 * t)}

@@ -12,9 +12,7 @@ import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.config import in_range
-from gms_comp.runtime.effects.base import FilterEffect, Shape
-from gms_comp.runtime.effects.leftover import Leftover
-from gms_comp.runtime.effects.path import Context
+from gms_comp.runtime.effects.base import FilterEffect
 
 
 @dataclass(frozen=True)
@@ -34,14 +32,3 @@ class DriveLag(FilterEffect):
         """force + lag dforce/dt by a backward difference."""
         r = self.lag_s / sample_time_s
         return np.array([1.0 + r, -r]), np.array([1.0])
-
-    @classmethod
-    def shape_grid(cls, ctx: Context, left: Leftover, presliding_m: float) -> list[Shape]:
-        """Lags from 0.05 to 3 sample times."""
-        dt = ctx.sample_time_s
-        return [{"lag_s": float(lag)} for lag in np.geomspace(0.05 * dt, 3 * dt, 12)]
-
-    @classmethod
-    def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
-        """Lags within 0.01 and 10 sample times."""
-        return {"lag_s": (0.01 * ctx.sample_time_s, 10 * ctx.sample_time_s)}

@@ -18,7 +18,7 @@ until it slips (``kept_through_turns`` 1); the other (0) loses it at the turn. A
 kept through presliding after a start depends on where exactly each fitted break-away
 lies: on the project's own generator the gain after the median dwell came out 15-37 %
 low on seeds 1-5 with the kept form, 2-16 % with the turn's. A table may hold either;
-the diagnosis fits both (``FITTED_FORMS``) and takes one worth an effect.
+the diagnosis fits both and takes one worth an effect.
 
 The width of each element's window grows with g, its height too; the design column is
 the extra force at a gain ``reach`` (G) divided by G, so that its coefficient ``gamma``
@@ -27,7 +27,6 @@ linear in ``gamma``. It needs the GMS it raises (``Context.gms``; per sample, ``
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -37,7 +36,7 @@ import numpy as np
 from gms_comp.arrays import FloatArray
 from gms_comp.config import in_range, positive
 from gms_comp.gms import GmsParams
-from gms_comp.runtime.effects.base import Effect, Shape, duration
+from gms_comp.runtime.effects.base import Effect
 from gms_comp.runtime.effects.dwell_kernels import (
     N_TAIL,
     held_at_starts,
@@ -45,18 +44,11 @@ from gms_comp.runtime.effects.dwell_kernels import (
     raised_run,
     raised_windows,
 )
-from gms_comp.runtime.effects.leftover import Leftover
 from gms_comp.runtime.effects.path import Context
 
-# The time constants the diagnosis considers (s): far below a servo cycle or above a
-# trace's length a dwell gain cannot be told from a constant one.
-TAU_RANGE_S = (1e-4, 1e2)
-# The forms at a turn the diagnosis fits, each from its own starts, a form worth an
-# effect taken before a better held-out one (selection._forms; the better held out alone
-# lost dwell_time-146, -157, -182 of the independent generator to `none`).
-FITTED_FORMS = (0.0, 1.0)
-# The gains at which the column's windows are computed (G: 0.5 % to 1.5 x the limits).
-REACH_RANGE = (5e-3, 1.5)
+# Time constants below this are held at it (a servo cycle: far below, the gain cannot be
+# told from a constant one).
+MIN_TAU_S = 1e-4
 # Each element's raised limit is spread over break-aways within exp(+-SPREAD) of its own,
 # on SPREAD_ELEMENTS sub-elements: the extra force of a raised element is a narrow window
 # at its break-away, so a fitted break-away a little off puts its window off. With the
@@ -92,7 +84,7 @@ class RaisedLimits:
         w = gms.limit_N[active]
         self.k, self.w = _sub_elements(w, w / gms.stiffness_N_per_m[active])
         self.scalars = gms.scalars
-        self.tau_s = max(tau_s, TAU_RANGE_S[0])
+        self.tau_s = max(tau_s, MIN_TAU_S)
         self.reach = reach
         self.scale = scale
         self.keep = float(keep)
@@ -177,8 +169,6 @@ class DwellTime(Effect):
 
     name: ClassVar[str] = "dwell_time"
     SHAPE: ClassVar[tuple[str, ...]] = ("tau_s", "reach", "kept_through_turns")
-    SET_BY_SIZE: ClassVar[tuple[str, ...]] = ("reach",)
-    COEFFICIENT_LOWER: ClassVar[float] = 0.0
     gamma: float = field(metadata=in_range(0.0, 100.0))
     tau_s: float = field(metadata=positive(1e7))
     reach: float = field(metadata=positive(100.0))
@@ -213,71 +203,7 @@ class DwellTime(Effect):
         """``[gamma]``."""
         return np.array([self.gamma])
 
-    @classmethod
-    def consistent_shape(cls, coefficients: FloatArray, shape: Mapping[str, float]) -> Shape:
-        """The windows computed at the fitted gain (``reach = gamma``, within its range):
-        a column computed at one gain and scaled to another is a different force (on an
-        effect-free trace a gain of 264 on windows computed at 0.014 fitted spikes at
-        the starts)."""
-        return {**shape, "reach": float(np.clip(coefficients[0], *REACH_RANGE))}
-
-    def in_context(self, ctx: Context) -> dict[str, float]:
-        """The median standstill before the starts along ``ctx`` and the break-away gain
-        after it, gamma ln(1 + t/tau): what a trace's starts determine. Over dwells of
-        0.05-3 s, (gamma, tau) pairs with the same gains at those dwells fit alike (on an
-        independent trace the whole-trace RMS differed by 3e-5 relative between tau 0.15
-        and 0.42 s), so gamma alone follows the tau chosen."""
-        dwells = ctx.dwell_s[ctx.starts()]
-        dwells = dwells[dwells > 0.0]
-        if dwells.size == 0:
-            return {}
-        median = float(np.median(dwells))
-        return {
-            "median_dwell_s": median,
-            "gain_after_median_dwell": self.gamma * math.log1p(median / self.tau_s),
-        }
-
-    def relative_size(self, ctx: Context) -> float | None:
-        """The break-away gain after the median standstill (:meth:`in_context`): with
-        the windows fitted to the starts' residual, a gain of 0.3 % (on an independent
-        effect-free trace, a bump of one start the baseline missed) can change the model
-        force by more than its 2 %."""
-        return self.in_context(ctx).get("gain_after_median_dwell", 0.0)
-
     def stream(self, gms: GmsParams | None) -> RaisedLimits:
         """The per-sample form: its elements' state is carried from sample to sample."""
         return RaisedLimits(_needs(gms, "stream"), self.tau_s, self.reach,
                             self.gamma / self.reach, self.kept_through_turns)  # fmt: skip
-
-    @classmethod
-    def shape_grid(cls, ctx: Context, left: Leftover, presliding_m: float) -> list[Shape]:
-        """tau over the decades from :func:`shortest_tau` to the trace's length; gains
-        3-30 %; the forms at a turn in ``FITTED_FORMS``."""
-        lo, hi = cls.shape_bounds(ctx, presliding_m)["tau_s"]
-        return [
-            {"tau_s": float(tau), "reach": reach, "kept_through_turns": keep}
-            for tau in np.geomspace(lo, max(min(hi, duration(ctx)), 2 * lo), 9)
-            for reach in (0.03, 0.1, 0.3)
-            for keep in FITTED_FORMS
-        ]
-
-    @classmethod
-    def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
-        """tau from :func:`shortest_tau` to ``TAU_RANGE_S``'s top, the gain in
-        ``REACH_RANGE`` (the form at a turn is not searched: a discrete key)."""
-        return {"tau_s": (shortest_tau(ctx), TAU_RANGE_S[1]), "reach": REACH_RANGE}
-
-
-def shortest_tau(ctx: Context) -> float:
-    """The shortest time constant a dwell gain is fitted with: a tenth of the median
-    standstill before the starts (rests of at least the path's ``REST_HOLD_S``; shorter
-    ones raise no limits). Far below every dwell, ln(1 + t_d / tau) hardly changes with
-    the dwell (from 0.05 to 3 s at tau = 1 ms: 3.9 to 8.0), so the gain is the same at
-    every start, and on an effect-free trace such a column took up the baseline's
-    mismatch at starts (held-out gain 4 %); at a tenth of the median it still grows 2.2 x
-    from a fifth of the median dwell to the median."""
-    dwells = ctx.dwell_s[ctx.starts()]
-    dwells = dwells[dwells > 0.0]
-    if dwells.size == 0:
-        return TAU_RANGE_S[0]
-    return float(np.clip(0.1 * np.median(dwells), *TAU_RANGE_S))

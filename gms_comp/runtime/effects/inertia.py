@@ -19,10 +19,8 @@ class Inertia(Effect):
     """The moving mass ``mass_kg`` times the acceleration."""
 
     name: ClassVar[str] = "inertia"
-    BASIS_READS_GMS: ClassVar[bool] = False
     # the acceleration feedforward already supplies the inertial force
     measurement_only: ClassVar[bool] = True
-    COEFFICIENT_LOWER: ClassVar[float] = 0.0
     mass_kg: float = field(metadata=in_range(0.0, 1e5))
 
     @classmethod

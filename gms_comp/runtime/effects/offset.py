@@ -19,7 +19,6 @@ class Offset(Effect):
     """A constant force ``offset_N`` of either sign."""
 
     name: ClassVar[str] = "offset"
-    BASIS_READS_GMS: ClassVar[bool] = False
     offset_N: float = field(metadata=in_range(-1e6, 1e6))
 
     @classmethod

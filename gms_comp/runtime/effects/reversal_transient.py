@@ -11,8 +11,7 @@ import numpy as np
 
 from gms_comp.arrays import FloatArray
 from gms_comp.config import in_range, positive
-from gms_comp.runtime.effects.base import Effect, Shape, stroke
-from gms_comp.runtime.effects.leftover import Leftover
+from gms_comp.runtime.effects.base import Effect
 from gms_comp.runtime.effects.path import Context
 
 
@@ -21,9 +20,7 @@ class ReversalTransient(Effect):
     """Overshoot ``amplitude_N`` decaying over ``length_m`` of travel after a reversal."""
 
     name: ClassVar[str] = "reversal_transient"
-    BASIS_READS_GMS: ClassVar[bool] = False
     SHAPE: ClassVar[tuple[str, ...]] = ("length_m",)
-    COEFFICIENT_LOWER: ClassVar[float] = 0.0
     amplitude_N: float = field(metadata=in_range(0.0, 1e6))
     length_m: float = field(metadata=positive(1.0))
 
@@ -41,14 +38,3 @@ class ReversalTransient(Effect):
     def coefficients(self) -> FloatArray:
         """``[A]``."""
         return np.array([self.amplitude_N])
-
-    @classmethod
-    def shape_grid(cls, ctx: Context, left: Leftover, presliding_m: float) -> list[Shape]:
-        """Lengths from a tenth of the presliding length to a fifth of the stroke."""
-        hi = max(stroke(ctx) / 5, presliding_m)
-        return [{"length_m": float(s)} for s in np.geomspace(presliding_m / 10, hi, 14)]
-
-    @classmethod
-    def shape_bounds(cls, ctx: Context, presliding_m: float) -> dict[str, tuple[float, float]]:
-        """Lengths within 1/20 of the presliding length and the stroke."""
-        return {"length_m": (presliding_m / 20, max(stroke(ctx), presliding_m))}

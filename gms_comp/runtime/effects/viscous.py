@@ -19,8 +19,6 @@ class Viscous(Effect):
     """Viscous friction ``c_Ns_per_m`` times the velocity."""
 
     name: ClassVar[str] = "viscous"
-    BASIS_READS_GMS: ClassVar[bool] = False
-    COEFFICIENT_LOWER: ClassVar[float] = 0.0
     c_Ns_per_m: float = field(metadata=in_range(0.0, 1e7))
 
     @classmethod
