@@ -21,12 +21,15 @@ from firmware_bridge.profiles.cia402.drive import Cia402Drive
 from firmware_bridge.settings import CanConfig
 from gms_comp.app.cli import main
 from gms_comp.app.commands.diagnose import extended_table
-from gms_comp.app.live.commission import commission
+from gms_comp.app.live.commission import commission, physics_table
 from gms_comp.app.live.follow import follow
 from gms_comp.app.live.machine import machine_on_bus, scenario_program
 from gms_comp.config import default_config_path
 from gms_comp.runtime.observer import FrictionObserver
 from sim.machine import CspAxis, load_machine
+from sim.plant import ScaledFriction
+from sim.scenarios import ball_set_friction
+from sim.strategies import calibrate
 
 _channels = itertools.count()
 RIPPLE = {"amplitude_N": 2.0, "wavelength_m": 2e-3, "phase_rad": 0.4}
@@ -60,6 +63,18 @@ def test_commissioning_finds_the_hidden_ripple_and_the_feedforward_gains(tmp_pat
     assert set(v) == {"none", "coulomb_viscous", "table", "extended"}
     assert v["extended"]["peak_reversal_error_m"] <= 0.2 * v["none"]["peak_reversal_error_m"]
     assert v["extended"]["rms_error_m"] < v["table"]["rms_error_m"]  # the ripple, fed forward
+    # the Coulomb level fitted from the bus recording (the mass's m a taken out) against the
+    # one calibrated on the ball model itself at two speeds, as `simulate` does
+    c = machine.scenario.scenario
+    truth = ScaledFriction(
+        ball_set_friction(machine.scenario.ball), machine.scenario.plant.ball_set_count
+    )
+    calibrated = calibrate(truth, c.calibration_travel_m, c.calibration_velocities_m_s)
+    assert doc["coulomb_viscous"]["coulomb_N"] == pytest.approx(calibrated.coulomb_N, rel=0.1)
+    runs = doc["can"]["runs"]
+    assert set(runs) == {"identification", *v}
+    assert all(r["frames_sent"] > 0 and r["stale_or_corrupt_applied"] == 0 for r in runs.values())
+    assert doc["can"]["stale_or_corrupt_applied"] == 0  # the built-in drive counts it
 
 
 @pytest.mark.slow
@@ -69,7 +84,6 @@ def test_run_follows_the_machines_nc_and_answers_every_sync() -> None:
     machine = load_machine()
     cfg = dataclasses.replace(CanConfig(), channel=f"test-live-{next(_channels)}")
     program = scenario_program(machine, cfg.cycle_period_s)[:2500]
-    from gms_comp.app.live.commission import physics_table
 
     s = machine.scenario
     observer = FrictionObserver(physics_table(s), s.plant.force_constant_N_per_A,

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any, cast
 
 import numpy as np
+import scipy.optimize
 
 from firmware_bridge.profiles.cia402.download import download_table, store_table
 from firmware_bridge.profiles.cia402.drive import Cia402Drive
@@ -65,19 +66,42 @@ class Verification:
     samples_missing: int
     position_m: FloatArray
     target_m: FloatArray
+    can: dict[str, Any]  # the run's CAN figures (:func:`can_figures`)
 
 
-def fit_coulomb_viscous(trace: Trace, band_m_s: float) -> CoulombViscous:
-    """``F = F_c sign(v) + b v`` by least squares over the moving samples of ``trace``."""
-    v = (
-        trace.velocity_m_s
-        if trace.velocity_m_s is not None
-        else np.gradient(trace.position_m, trace.time_s)
-    )
-    ok = np.isfinite(v) & np.isfinite(trace.force_N) & (np.abs(v) > 10 * band_m_s)
+# The stream report's figures a commissioning report keeps for each run: what was sent,
+# cycles without a date or late, and what the drive applied (null for an external drive:
+# only the drive knows).
+CAN_KEYS = (
+    "frames_sent", "requests_sent", "undated_cycles", "late_cycles", "cycles_slipped",
+    "frames_applied", "frames_rejected", "stale_or_corrupt_applied", "emcy",
+)  # fmt: skip
+
+
+def can_figures(report: dict[str, Any]) -> dict[str, Any]:
+    """The :data:`CAN_KEYS` of a stream report (a key the report lacks is null)."""
+    return {key: report.get(key) for key in CAN_KEYS}
+
+
+def fit_coulomb_viscous(trace: Trace, band_m_s: float, mass_kg: float) -> CoulombViscous:
+    """``F = F_c sign(v) + b v`` with ``F_c, b >= 0`` (non-negative least squares) over the
+    moving samples of ``trace``, a drive force: the moving mass's ``m a`` is taken out
+    first (the acceleration from the NC's target where the trace has it, smooth, else from
+    the position). Fitted on the force as recorded, the mass's force on the acceleration
+    ramps took the place of friction: a Coulomb level 6x the guide's."""
+    t = trace.time_s
+    path = trace.reference_position_m if trace.reference_position_m is not None else None
+    if path is None or not np.isfinite(path).all():
+        path = trace.position_m
+    v = trace.velocity_m_s if trace.velocity_m_s is not None else np.gradient(trace.position_m, t)
+    a = np.gradient(np.gradient(path, t), t)
+    friction = trace.force_N - mass_kg * a
+    ok = np.isfinite(v) & np.isfinite(friction) & (np.abs(v) > 10 * band_m_s)
+    if ok.sum() < 2:
+        raise InputError(trace.source, "", "never moves faster than the Coulomb band: no fit")
     design = np.column_stack([np.sign(v[ok]), v[ok]])
-    (coulomb, viscous), *_ = np.linalg.lstsq(design, trace.force_N[ok], rcond=None)
-    return CoulombViscous(float(coulomb), max(0.0, float(viscous)), band_m_s)
+    (coulomb, viscous), _ = scipy.optimize.nnls(design, friction[ok])
+    return CoulombViscous(float(coulomb), float(viscous), band_m_s)
 
 
 def physics_table(s: Scenario) -> GmsTable:
@@ -163,7 +187,7 @@ def verify(
 
     else:
         feedforward = program_feedforward(model, s, period)
-    recording, _ = drive_and_record(
+    recording, report = drive_and_record(
         cfg, targets, stop_request=stop_request, feedforward=feedforward, drive=drive,
         prepare=prepare,
     )  # fmt: skip
@@ -182,6 +206,7 @@ def verify(
         samples_missing=int(np.sum(~np.isfinite(error))),
         position_m=position,
         target_m=target,
+        can=can_figures(report),
     )
 
 
@@ -195,6 +220,7 @@ class Commissioning:
     extended: GmsTable
     verifications: list[Verification]
     coulomb_viscous: CoulombViscous
+    identification_can: dict[str, Any]  # the recording's CAN figures
 
     def to_json(self) -> dict[str, Any]:
         """The ``--json`` document: diagnosis, verification per feedforward, CAN figures."""
@@ -214,7 +240,17 @@ class Commissioning:
                 }
                 for v in self.verifications
             },
+            "can": self.can_json(),
         }
+
+    def can_json(self) -> dict[str, Any]:
+        """Each run's CAN figures and the stale or corrupt frames applied over all of them
+        (null where the drive is external: only the drive knows)."""
+        runs = {"identification": self.identification_can}
+        runs.update((v.name, v.can) for v in self.verifications)
+        applied = [r["stale_or_corrupt_applied"] for r in runs.values()]
+        total = None if any(a is None for a in applied) else int(sum(applied))
+        return {"runs": runs, "stale_or_corrupt_applied": total}
 
 
 @contextlib.contextmanager
@@ -252,7 +288,7 @@ def commission(
     period = cfg.cycle_period_s
     progress("recording the identification profile")
     targets = profile_targets(period, scale).tolist()
-    recording, _ = drive_and_record(cfg, targets, stop_request=stop_request, drive=drive)
+    recording, report = drive_and_record(cfg, targets, stop_request=stop_request, drive=drive)
     recorded = to_trace(recording, cfg, s.plant, "commission: identification profile")
     progress(f"diagnosing {recorded.sidecar['samples']} samples")
     physics = physics_table(s)
@@ -269,7 +305,7 @@ def commission(
         # physics table's)
         result = diagnose(trace, "drive", None, DiagnosisConfig(), physics.params)
     extended = replace(extended_table(result), params=physics.params, scaled_by=physics.scaled_by)
-    cv = fit_coulomb_viscous(trace, s.compensator.coulomb_velocity_band_m_s)
+    cv = fit_coulomb_viscous(trace, s.compensator.coulomb_velocity_band_m_s, s.plant.moving_mass_kg)
     models: dict[str, GmsTable | ForceModel | None] = {
         "none": None,
         "coulomb_viscous": cv,
@@ -285,4 +321,4 @@ def commission(
     if in_drive and not (stop_request is not None and stop_request.is_set()):
         progress("reversal test with the extended table in the drive")
         runs.append(verify(cfg, s, "extended_in_drive", extended, stop_request, drive, True))
-    return Commissioning(recorded, trace, result, extended, runs, cv)
+    return Commissioning(recorded, trace, result, extended, runs, cv, can_figures(report))
