@@ -69,7 +69,8 @@ def test_commissioning_finds_the_hidden_ripple_and_the_feedforward_gains(tmp_pat
     truth = ScaledFriction(
         ball_set_friction(machine.scenario.ball), machine.scenario.plant.ball_set_count
     )
-    calibrated = calibrate(truth, c.calibration_travel_m, c.calibration_velocities_m_s)
+    v1, v2 = c.calibration_velocities_m_s
+    calibrated = calibrate(truth, c.calibration_travel_m, (v1, v2))
     assert doc["coulomb_viscous"]["coulomb_N"] == pytest.approx(calibrated.coulomb_N, rel=0.1)
     runs = doc["can"]["runs"]
     assert set(runs) == {"identification", *v}
