@@ -5,7 +5,8 @@ held-out error of the model it extends by a relative margin, or by a smaller one
 significant against the residual's own spread (:func:`lowers`); an effect acting on few
 rows is judged where it acts, every event predicted by a fit that left it out
 (:func:`lowers_locally`); where its policy names the rows that tell it apart, there too;
-and it must be large enough to matter (:func:`admissible`). A shape that follows the
+and it must be large enough to matter and within the ranges its effect declares, those a
+table's extension is checked against (:func:`admissible`). A shape that follows the
 effect's size (a dwell gain's windows) must agree with it (:func:`agreed` steps the two
 together to a fixed point).
 """
@@ -21,6 +22,7 @@ from gms_comp.arrays import FloatArray
 from gms_comp.measured.diagnosis.candidates import Option, Scorer, Trial, acts_locally
 from gms_comp.measured.diagnosis.config import DiagnosisConfig, SelectionConfig
 from gms_comp.measured.diagnosis.design import rms
+from gms_comp.runtime.effects import Effect, ExtensionError, effect_from_dict, effect_to_dict
 
 # Fixed-point steps that make a shape agree with the size fitted on it: each goes halfway
 # (in log) to the shape the size implies (a dwell's fitted gain falls as its windows' gain
@@ -106,10 +108,21 @@ def admissible(
         # an effect sized against the friction it scales (a dwell's break-away gain)
         m = scorer.theta.size
         effect = trial.option.effect.from_coefficients(trial.theta[m:], trial.option.shape)
+        if not declared(effect):
+            return False  # a table could not hold it (a dwell gain of 2e5)
         size = trial.option.policy.relative_size(effect, scorer.parts[0].ctx)
         if size is not None and size < rules.min_effect_fraction:
             return False
     return float(np.max(np.abs(scorer.change(trial)))) >= rules.min_effect_fraction * level_N
+
+
+def declared(effect: Effect) -> bool:
+    """Whether ``effect``'s parameters lie in the ranges its class declares."""
+    try:
+        effect_from_dict(effect_to_dict(effect))
+    except ExtensionError:
+        return False
+    return True
 
 
 def consistent(scorer: Scorer, trial: Trial) -> bool:
