@@ -5,11 +5,11 @@ Every run starts ``gms-comp machine`` in its own process on python-can's ``udp_m
 
 - ``commission``, with a hidden ``position_ripple``, ``reversal_transient`` and
   ``viscous`` in turn: the effect named, its main parameter's error, the reversal test's
-  peak and RMS error per feedforward and the ratios the issue targets (extended against
-  none and against the physics table);
+  peak and RMS error per feedforward, the table deployed and the ratios the issue targets
+  (extended and deployed against none and against the physics table);
 - ``run`` at 1 kHz against ``gms-comp machine --nc``: the share of SYNCs answered within
   the cycle, SYNC-to-frame p50/p99, stale or foreign frames the drive applied, and the
-  tracking error with the extended table (of the ripple commissioning) against none;
+  tracking error with the deployed table (of the ripple commissioning) against none;
 - ``record`` under dropped and delayed TPDOs: samples, lost, late;
 - the observer in the drive (the table downloaded, the servo at 4, 8, 16 kHz) against
   the feedforward over CAN at 1 kHz with and without look-ahead, stepped over the bus.
@@ -95,8 +95,12 @@ def commissioning(folder: Path, scale: float) -> dict[str, Any]:
             ),
             "peak_reversal_error_nm": {k: round(x * 1e9, 1) for k, x in peak.items() if x},
             "rms_error_nm": {k: round(x["rms_error_m"] * 1e9, 1) for k, x in v.items()},
+            "deployed": doc["deployed"],
             "extended_over_none": peak["extended"] / peak["none"],
             "extended_over_table": peak["extended"] / peak["table"],
+            "deployed_over_none": peak[doc["deployed"]] / peak["none"],
+            "deployed_over_table": peak[doc["deployed"]] / peak["table"],
+            "can": doc["can"]["stale_or_corrupt_applied"],
             "samples_missing": doc["recording"]["samples_missing"],
             "samples": doc["recording"]["samples"],
             "seconds": round(time.monotonic() - started, 1),
@@ -109,8 +113,8 @@ def running(folder: Path) -> dict[str, Any]:
     path = config(folder, "position_ripple", EFFECTS["position_ripple"][0])
     table = folder / "position_ripple.table.json"
     out = {}
-    for name, table_arg in (("none", "none"), ("extended", str(table))):
-        if name == "extended" and not table.exists():
+    for name, table_arg in (("none", "none"), ("deployed", str(table))):
+        if name == "deployed" and not table.exists():
             continue
         with machine(path, "--nc") as proc:
             time.sleep(0.5)

@@ -5,9 +5,11 @@ position as SYNC master; the axis is left stopped and disabled after each step, 
 Ctrl-C): it records the identification profile, diagnoses it (the cause of what the ball
 model does not explain, the extended model), then runs the ``[scenario]`` reversal test
 once per feedforward: none, Coulomb+viscous fitted to the recording, the physics table
-(the ball model, whole guide) and the extended table. It reports the cause and the gain
-in um: a summary on stdout (``--json``: the whole document), ``--report DIR`` a JSON and
-a self-contained HTML page with plots, ``--table OUT`` the extended table for
+(the ball model, whole guide), the extended table (the physics GMS with the effects
+found) and the calibrated one (the GMS as the diagnosis calibrated it, with the effects),
+and deploys the table with the smallest peak reversal error. It reports the cause and the
+gain in um: a summary on stdout (``--json``: the whole document), ``--report DIR`` a JSON
+and a self-contained HTML page with plots, ``--table OUT`` the deployed table for
 ``gms-comp run``.
 
 Against the simulated machine: ``gms-comp machine --interface udp_multicast --channel
@@ -54,12 +56,12 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--in-drive",
         action="store_true",
-        help="also download the extended table into the drive (SDO, 0x2100) and test it "
+        help="also download the deployed table into the drive (SDO, 0x2100) and test it "
         "run there, at the drive's servo rate (a drive with the gms-comp observer)",
     )
     p.add_argument("--json", action="store_true", help="print the document as JSON on stdout")
     p.add_argument("--report", type=output_dir, metavar="DIR", help="write JSON and HTML here")
-    p.add_argument("--table", type=output_file, metavar="OUT", help="write the extended table")
+    p.add_argument("--table", type=output_file, metavar="OUT", help="write the deployed table")
     p.set_defaults(func=run)
 
 
@@ -84,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     doc["interrupted"] = stopping.is_set()
     written: list[Path] = []
     if args.table is not None:
-        write_table(args.table, result.extended)
+        write_table(args.table, result.deployed_table)
         written.append(Path(args.table))
     if args.report is not None:
         from gms_comp.app.live.report import write_report  # matplotlib only when asked for
@@ -116,4 +118,5 @@ def summary(doc: dict[str, Any]) -> str:
             f"  {name:16s} {'-' if peak is None else f'{peak * 1e6:8.3f}'} um / "
             f"{v['rms_error_m'] * 1e6:8.3f} um"
         )
+    lines.append(f"deployed: {doc['deployed']} (the table with the smallest peak reversal error)")
     return "\n".join(lines)
