@@ -20,10 +20,12 @@ import pytest
 from firmware_bridge.profiles.cia402.drive import Cia402Drive
 from firmware_bridge.settings import CanConfig
 from gms_comp.app.cli import main
+from gms_comp.app.commands.commission import summary
 from gms_comp.app.commands.diagnose import extended_table
 from gms_comp.app.live.commission import commission, physics_table
 from gms_comp.app.live.follow import follow
 from gms_comp.app.live.machine import machine_on_bus, scenario_program
+from gms_comp.app.live.report import write_report
 from gms_comp.config import default_config_path
 from gms_comp.runtime.observer import FrictionObserver
 from sim.machine import CspAxis, load_machine
@@ -66,6 +68,13 @@ def test_commissioning_finds_the_hidden_ripple_and_the_feedforward_gains(tmp_pat
     # the deployed table is the tables' best in the reversal test
     best = min(v[k]["peak_reversal_error_m"] for k in ("table", "extended", "calibrated"))
     assert v[doc["deployed"]]["peak_reversal_error_m"] == best
+    # what the user reads: the cause with its parameters, the errors in um, what was deployed
+    text = summary(doc)
+    assert "cause: position_ripple: position_ripple (amplitude = " in text
+    assert f"deployed: {doc['deployed']}" in text and text.count(" um / ") == len(v)
+    page = write_report(result, doc, tmp_path / "report", cfg.cycle_period_s)
+    html = next(p for p in page if p.suffix == ".html").read_text()
+    assert "position_ripple" in html and f"Deployed: {doc['deployed']}" in html
     # the Coulomb level fitted from the bus recording (the mass's m a taken out) against the
     # one calibrated on the ball model itself at two speeds, as `simulate` does
     c = machine.scenario.scenario

@@ -33,6 +33,7 @@ from gms_comp.app.live.recording import nc_on_bus
 from gms_comp.app.signals import stop_requests
 from gms_comp.arguments import output_dir, output_file
 from gms_comp.errors import BusError
+from gms_comp.measured.diagnosis.result import parameter_text
 from gms_comp.tables.table import write_table
 from sim.scenarios import load_scenario
 
@@ -104,12 +105,16 @@ def run(args: argparse.Namespace) -> int:
 def summary(doc: dict[str, Any]) -> str:
     """The cause found and the reversal errors per feedforward, in um."""
     diag = doc["diagnosis"]
-    effects = diag.get("effects", [])
-    cause = ", ".join(e.get("effect", "?") for e in effects) or "none"
+    effects = ", ".join(
+        f"{e['effect']} ({', '.join(parameter_text(k, v) for k, v in e['parameters'].items())})"
+        for e in diag["effects"]
+    )
     rec = doc["recording"]
     lines = [
         f"recorded {rec['samples']} samples ({rec['samples_missing']} missing)",
-        f"cause: {cause} (verdict {diag.get('verdict')})",
+        f"cause: {diag['effect']}" + (f": {effects}" if effects else ""),
+        f"gain: {diag['gain']:.1%} (held-out force RMS {diag['baseline_rms_N']:.3g} N -> "
+        f"{diag['extended_rms_N']:.3g} N, noise {diag['noise_rms_N']:.3g} N)",
         "reversal test, peak / RMS following error:",
     ]
     for name, v in doc["verification"].items():

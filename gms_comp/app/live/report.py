@@ -76,10 +76,12 @@ td,th{{padding:.2em .8em;text-align:right}}</style></head><body>
 <p>gms-comp {__version__}, {datetime.now(UTC):%Y-%m-%d %H:%M UTC}; drive
 {html.escape(json.dumps(doc["recording"]["drive"]))}; {doc["recording"]["samples"]} samples
 recorded, {doc["recording"]["samples_missing"]} missing.</p>
-<h2>Cause found</h2><p>{html.escape(str(diag.get("verdict", "")))}: {html.escape(effects)}</p>
+<h2>Cause found</h2><p>{html.escape(str(diag["effect"]))}: {html.escape(effects)}</p>
 <h2>Verification: the same reversal test per feedforward</h2>
 <table><tr><th>feedforward</th><th>peak reversal error [um]</th><th>RMS error [um]</th>
 <th>samples missing</th></tr>{rows}</table>
+<p>Deployed: {html.escape(str(doc.get("deployed")))}, the table with the smallest peak
+reversal error.</p>
 {images}
 </body></html>
 """
