@@ -15,11 +15,12 @@ from __future__ import annotations
 import math
 import sys
 import threading
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any, Literal, cast
 
 import numpy as np
 
+from firmware_bridge.profiles.cia402.recorder import Recorder
 from firmware_bridge.profiles.cia402.tx import Cia402Tx
 from firmware_bridge.realtime import stream_on
 from firmware_bridge.session import Rig
@@ -38,18 +39,10 @@ class Follower:
     period_s: float
     _seen: int = -1
     _last_x: float | None = None
-    _target: float | None = None  # the previous SYNC's target
-    _motions: int = 0
-    errors_m: list[float] = field(default_factory=list)  # target - position actual, per SYNC
 
     def __call__(self, t_s: float) -> float | None:
         """The feedforward for the SYNC being answered, or None if its input is missing."""
         observed = self.tx.observed
-        # the drive's position after the previous SYNC, against that SYNC's target
-        if observed.counts["motion"] != self._motions and self._target is not None:
-            assert observed.position_m is not None
-            self.errors_m.append(self._target - observed.position_m)
-        self._motions, self._target = observed.counts["motion"], observed.target_m
         kind = "nc" if self.feed == "reference" else "motion"
         if observed.counts[kind] == self._seen:
             return None  # this SYNC's input did not arrive
@@ -72,6 +65,16 @@ def _progress(time_s: float, figures: dict[str, Any]) -> None:
     print(line, file=sys.stderr, flush=True)
 
 
+def first_reversal(target: np.ndarray) -> int:
+    """The row where ``target``'s motion first changes direction (its length if never);
+    rows without a target are skipped."""
+    rows = np.flatnonzero(np.isfinite(target))
+    step = np.diff(target[rows])
+    moving = np.flatnonzero(step != 0.0)
+    turns = np.flatnonzero(np.diff(np.sign(step[moving])) != 0)
+    return int(rows[moving[turns[0] + 1]]) if turns.size else len(target)
+
+
 def follow(
     cfg: CanConfig,
     observer: FrictionObserver | None,
@@ -81,14 +84,22 @@ def follow(
     stop_request: threading.Event | None = None,
 ) -> dict[str, Any]:
     """Follow the NC's SYNC for ``duration_s`` with ``observer`` (None: send 0 A), then stop
-    cleanly; the stream's report plus the tracking error seen on the bus."""
+    cleanly; the stream's report plus the tracking error seen on the bus: per SYNC, the
+    position the drive sampled against the target it had followed for a cycle (the
+    NC's target of the SYNC before, as ``record`` files them), from the first reversal of
+    the target on (before it the observer's elements hold a history it never saw: joining
+    an axis in motion, a table's feedforward starts 0.9 um off)."""
     cfg = replace(cfg, profile="cia402", sync_master=False)
     with Rig(cfg, builtin_drive=False) as rig:
         tx = cast(Cia402Tx, rig.tx)
+        tx.recorder = Recorder(tx.codec, tx.observed.unit_m, cfg.rated_current_A)
         source = Follower(tx, observer, feed, look_ahead_cycles, cfg.cycle_period_s)
         report = stream_on(rig, source, duration_s, stop_request=stop_request,
                            progress=_progress)  # fmt: skip
-    errors = np.asarray(source.errors_m[10:])
+        recording = tx.recorder.finish()
+    target = recording.column("reference_position_m")
+    error = (target - recording.column("position_m"))[first_reversal(target) :]
+    errors = error[np.isfinite(error)]
     report.update(
         feed=feed,
         inputs_missing=rig.streamer.inputs_missing,
