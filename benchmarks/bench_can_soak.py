@@ -29,14 +29,17 @@ stale count of both streams.
 from __future__ import annotations
 
 import argparse
+import bisect
 import itertools
 import json
+import math
 import os
 import random
 import sys
 import threading
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -85,17 +88,22 @@ def config(variant: str, tag: str) -> CanConfig:
     )
 
 
-def outcome(rig: Rig, report: dict[str, Any], seed: int, t0: float) -> dict[str, Any]:
-    """Fallback, recovery and applications inside the sustained delays, from the drive's logs."""
+def outcome(
+    rig: Rig, report: dict[str, Any], seed: int, to_stream: Callable[[float], float]
+) -> dict[str, Any]:
+    """Fallback, recovery and applications inside the sustained delays, from the drive's
+    logs, their times on the stream's clock (``to_stream``: the faults' windows are)."""
     cfg = rig.cfg
     period = cfg.cycle_period_s
-    applied = sorted(t - t0 for t, _ in rig.drive.applied_log)
-    outputs = [(t - t0, a) for t, a in rig.drive.output_log or []]
+    # the fallback on the drive's clock alone; the windows on the stream's
+    applied_at = sorted(t for t, _ in rig.drive.applied_log)
+    applied = [to_stream(t) for t in applied_at]
+    outputs = rig.drive.output_log or []
     held, i = 0.0, 0
     last_fresh: float | None = None
     for t, value in outputs:
-        while i < len(applied) and applied[i] <= t + 1e-9:
-            last_fresh = applied[i]
+        while i < len(applied_at) and applied_at[i] <= t + 1e-9:
+            last_fresh = applied_at[i]
             i += 1
         if last_fresh is not None and value != 0.0:
             held = max(held, t - last_fresh + period)
@@ -128,22 +136,30 @@ def stepped(variant: str, seed: int) -> dict[str, Any]:
         for k in range(round(DURATION_S / period)):
             rig.step(k, wave(k))
         report = rig.report()
-        return outcome(rig, report, seed, 0.0)
+        return outcome(rig, report, seed, lambda t: t)
 
 
 def real_time(variant: str, seed: int) -> dict[str, Any]:
     cfg = config(variant, f"rt-{variant}-{seed}")
-    # the wall clock at the stream's time 0: the least late of the cycles' starts
-    t0 = [float("inf")]
+    # each cycle's start on the wall clock and on the stream's: a late loop slips (its
+    # schedule moves on), so the two part by the slips, and the faults' windows are on the
+    # stream's clock
+    starts: list[tuple[float, float]] = []
 
     def source(t_s: float) -> float:
-        t0[0] = min(t0[0], time.time() - t_s)
+        starts.append((time.time(), t_s))
         return wave(round(t_s * 1e3))
+
+    def to_stream(t_wall: float) -> float:
+        """A wall-clock time on the stream's clock: after the last cycle started by then."""
+        i = max(0, bisect.bisect_right(starts, (t_wall, math.inf)) - 1)
+        wall, stream = starts[i]
+        return stream + (t_wall - wall)
 
     with Rig(cfg, [parse_fault(s) for s in specs(seed)], seed=seed) as rig:
         rig.drive.output_log = []
         report = stream_on(rig, source, DURATION_S)
-        return outcome(rig, report, seed, t0[0])
+        return outcome(rig, report, seed, to_stream)
 
 
 def second_compensator(profile: str, index: int, pairs: int) -> dict[str, Any]:
