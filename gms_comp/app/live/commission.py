@@ -50,6 +50,7 @@ from gms_comp.app.live.recording import (
     RecordedTrace,
     drive_and_record,
     profile_targets,
+    reversals,
     to_trace,
     write_recording,
 )
@@ -151,15 +152,6 @@ def program_feedforward(
     return feedforward
 
 
-def _reversals(target: FloatArray) -> list[int]:
-    """Rows where the target's motion changes direction (rows without a target skipped)."""
-    rows = np.flatnonzero(np.isfinite(target))
-    step = np.diff(target[rows])
-    moving = np.flatnonzero(step != 0.0)
-    signs = np.sign(step[moving])
-    return [int(rows[moving[i + 1]]) for i in np.flatnonzero(signs[1:] != signs[:-1])]
-
-
 def _level_one(program: NcProgram) -> float | None:
     """The in-drive observer's level: its table as it is, while the program moves."""
     return 1.0 if program.moving else 0.0
@@ -209,7 +201,7 @@ def verify(
     error = target - position
     peaks = [
         float(np.nanmax(np.abs(error[r : r + window])))
-        for r in _reversals(target)
+        for r in reversals(target)
         if np.isfinite(error[r : r + window]).any()
     ]
     return Verification(

@@ -25,6 +25,7 @@ from firmware_bridge.profiles.cia402.tx import Cia402Tx
 from firmware_bridge.realtime import stream_on
 from firmware_bridge.session import Rig
 from firmware_bridge.settings import CanConfig
+from gms_comp.app.live.recording import reversals
 from gms_comp.runtime.observer import FrictionObserver
 
 
@@ -65,16 +66,6 @@ def _progress(time_s: float, figures: dict[str, Any]) -> None:
     print(line, file=sys.stderr, flush=True)
 
 
-def first_reversal(target: np.ndarray) -> int:
-    """The row where ``target``'s motion first changes direction (its length if never);
-    rows without a target are skipped."""
-    rows = np.flatnonzero(np.isfinite(target))
-    step = np.diff(target[rows])
-    moving = np.flatnonzero(step != 0.0)
-    turns = np.flatnonzero(np.diff(np.sign(step[moving])) != 0)
-    return int(rows[moving[turns[0] + 1]]) if turns.size else len(target)
-
-
 def follow(
     cfg: CanConfig,
     observer: FrictionObserver | None,
@@ -98,7 +89,7 @@ def follow(
                            progress=_progress)  # fmt: skip
         recording = tx.recorder.finish()
     target = recording.column("reference_position_m")
-    error = (target - recording.column("position_m"))[first_reversal(target) :]
+    error = (target - recording.column("position_m"))[next(iter(reversals(target)), len(target)) :]
     errors = error[np.isfinite(error)]
     report.update(
         feed=feed,

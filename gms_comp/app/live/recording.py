@@ -157,6 +157,15 @@ def listen_and_record(
     return recorder.finish()
 
 
+def reversals(target: FloatArray) -> list[int]:
+    """Rows where the target's motion changes direction (rows without a target skipped)."""
+    rows = np.flatnonzero(np.isfinite(target))
+    step = np.diff(target[rows])
+    moving = np.flatnonzero(step != 0.0)
+    signs = np.sign(step[moving])
+    return [int(rows[moving[i + 1]]) for i in np.flatnonzero(signs[1:] != signs[:-1])]
+
+
 def to_trace(
     recording: Recording, cfg: CanConfig, plant: PlantConfig, source: str
 ) -> RecordedTrace:
