@@ -354,3 +354,30 @@ def test_csv_read_in_one_pass_as_cell_by_cell(
     for name, values in cells[0].items():
         np.testing.assert_array_equal(fast[0][name], values)
     assert cells[1] == ([2, 3, 4] if "\n\n" not in rows else [2, 4, 6])
+
+
+def test_a_recorded_trace_is_read_back_as_a_drive_force_from_its_sidecar(
+    tmp_path: Path,
+) -> None:
+    """`gms-comp record` writes a drive force (current times k_f, inertia in it): its
+    sidecar says so, and `diagnose` then fits the moving mass without --force-kind."""
+    from firmware_bridge.profiles.cia402.recorder import Recording
+    from firmware_bridge.settings import CanConfig
+    from gms_comp.app.live.recording import to_trace, write_recording
+    from sim.plant import PlantConfig
+
+    t = np.arange(600) * 1e-3
+    x = 1e-3 * np.sin(2 * np.pi * t)
+    v = 2e-3 * np.pi * np.cos(2 * np.pi * t)
+    rows = [(float(a), float(a), float(b), 0.1 * float(np.sign(b)))
+            for a, b in zip(x, v, strict=True)]  # fmt: skip
+    recording = Recording(1e-9, 2.0, rows=rows, slots=list(range(len(rows))))
+    path = tmp_path / "rec.csv"
+    write_recording(to_trace(recording, CanConfig(), PlantConfig(), "test"), path)
+    assert load_trace(path).force_kind == "drive"
+    sidecar = tmp_path / "rec.csv.json"
+    for text in ("not json", '{"force_kind": "torque"}', "[1, 2]", " " * (1 << 17)):
+        sidecar.write_text(text)  # a sidecar that says nothing this reader knows
+        assert load_trace(path).force_kind is None
+    sidecar.unlink()
+    assert load_trace(path).force_kind is None

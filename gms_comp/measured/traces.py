@@ -22,6 +22,7 @@ Loading runs one chain of checks (docs/traces.md):
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
@@ -131,6 +132,25 @@ def parse_mapping(items: Sequence[str], where: str) -> dict[str, str]:
     return mapping
 
 
+# A sidecar is small (a recording's is about 1 kB): a larger file is not one.
+MAX_SIDECAR_BYTES = 1 << 16
+
+
+def sidecar_force_kind(path: Path) -> ForceKind | None:
+    """The force kind a CSV's JSON sidecar (``OUT.csv.json``, as ``gms-comp record`` writes
+    it) declares under ``force_kind``, or None where there is none (or it says nothing
+    this reader knows: the sidecar is a hint, the CSV the data)."""
+    sidecar = path.with_name(path.name + ".json")
+    try:
+        if not sidecar.is_file() or sidecar.stat().st_size > MAX_SIDECAR_BYTES:
+            return None
+        doc = json.loads(sidecar.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    kind = doc.get("force_kind") if isinstance(doc, dict) else None
+    return "drive" if kind == "drive" else "friction" if kind == "friction" else None
+
+
 def load_trace(
     path: str | Path,
     mapping: Mapping[str, str] | None = None,
@@ -165,6 +185,7 @@ def load_trace(
     suffix = p.suffix.lower()
     kind: ForceKind | None = None
     if suffix == ".csv":
+        kind = sidecar_force_kind(p)
         columns, lines = read_csv(p)
         mapping = {**_identity(columns), **(mapping or {})}
         parsed = _parsed(p, mapping, columns)

@@ -189,6 +189,7 @@ def to_trace(
     missing = ~(np.isfinite(trace.position_m) & np.isfinite(force))
     sidecar = {
         "source": source,
+        "force_kind": "drive",  # diagnose reads it: the moving mass is fitted
         "drive": {
             "node_id": cfg.drive_node_id,
             "interface": cfg.interface,
