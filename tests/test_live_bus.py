@@ -14,7 +14,6 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from firmware_bridge.profiles.cia402.drive import Cia402Drive
