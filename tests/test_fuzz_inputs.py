@@ -458,10 +458,10 @@ CASES: list[Case] = [
         ("--elements",),
     ),
     Case(
-        "table_output_missing_folder",
+        "table_output_under_a_file",
         "cli",
-        ("table", "-o", "no/such/t.json", "--elements", "2"),
-        ("no/such",),
+        ("table", "-o", "good.csv/such/t.json", "--elements", "2"),
+        ("good.csv", "is a file"),
     ),
     Case(
         "map_is_not_code",
@@ -470,10 +470,10 @@ CASES: list[Case] = [
         ("--map", "neither a column name nor a number"),
     ),
     Case(
-        "profile_missing_folder",
+        "profile_under_a_file",
         "cli",
-        ("profile", "no/such/p.csv"),
-        ("no/such",),
+        ("profile", "good.csv/p.csv"),
+        ("good.csv", "is a file"),
     ),
     # malformed files
     Case(
