@@ -113,8 +113,7 @@ def _system_entry(path: Path) -> str | None:
 def _writable_file(value: str) -> Path:
     """A file to be written: not a folder, not a FIFO, device or socket (which an atomic
     replace would turn into a regular file), nothing under /dev, /proc or /sys, in an
-    writable folder or one that can be made (its nearest existing ancestor is a writable
-    folder: ``--table out/t.json`` beside ``--report out/rep``)."""
+    existing writable folder."""
     path = Path(value)
     if value == "" or path.is_dir():
         raise argparse.ArgumentTypeError(f"{value!r} is a folder, expected a file name")
@@ -129,10 +128,8 @@ def _writable_file(value: str) -> Path:
             "it would be replaced, not written"
         )
     folder = path.parent if str(path.parent) else Path(".")
-    while not folder.exists():
-        folder = folder.parent
     if not folder.is_dir():
-        raise argparse.ArgumentTypeError(f"{value!r}: {str(folder)!r} is a file, not a folder")
+        raise argparse.ArgumentTypeError(f"{value!r}: folder {str(folder)!r} does not exist")
     if not os.access(folder, os.W_OK):
         raise argparse.ArgumentTypeError(f"{value!r}: folder {str(folder)!r} is not writable")
     return path

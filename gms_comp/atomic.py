@@ -39,9 +39,6 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     ...     fig.savefig(tmp)
     """
     target = Path(path)
-    # a missing folder is made (the command line checked that it can be: its nearest
-    # existing ancestor is a writable folder)
-    (target.parent if str(target.parent) else Path(".")).mkdir(parents=True, exist_ok=True)
     fd, name = tempfile.mkstemp(
         prefix=f".{target.name}.", suffix=f".tmp{target.suffix}", dir=target.parent or "."
     )

@@ -458,10 +458,10 @@ CASES: list[Case] = [
         ("--elements",),
     ),
     Case(
-        "table_output_under_a_file",
+        "table_output_missing_folder",
         "cli",
-        ("table", "-o", "good.csv/such/t.json", "--elements", "2"),
-        ("good.csv", "is a file"),
+        ("table", "-o", "no/such/t.json", "--elements", "2"),
+        ("no/such",),
     ),
     Case(
         "map_is_not_code",
@@ -470,10 +470,10 @@ CASES: list[Case] = [
         ("--map", "neither a column name nor a number"),
     ),
     Case(
-        "profile_under_a_file",
+        "profile_missing_folder",
         "cli",
-        ("profile", "good.csv/p.csv"),
-        ("good.csv", "is a file"),
+        ("profile", "no/such/p.csv"),
+        ("no/such",),
     ),
     # malformed files
     Case(

@@ -239,20 +239,3 @@ def test_the_checked_suffixes_are_formats_the_writers_have() -> None:
     figure = plt.figure()
     assert {s[1:] for s in PLOT_SUFFIXES} <= set(figure.canvas.get_supported_filetypes())
     plt.close(figure)
-
-
-def test_an_output_file_in_a_missing_folder_makes_the_folder(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """As `--report out/rep` makes its folder, `--table out/t.json` (or `-o`) makes
-    `out/`; a path whose nearest existing part is a file is refused before any work."""
-    made = tmp_path / "out" / "deeper" / "t.json"
-    assert main(["table", "-o", str(made)]) == 0
-    assert read_table(made).params.limit_N.size > 0
-    blocker = tmp_path / "a-file"
-    blocker.write_text("x")
-    capsys.readouterr()
-    assert main(["table", "-o", str(blocker / "sub" / "t.json")]) == 2
-    err = capsys.readouterr().err
-    assert "is a file, not a folder" in err and err.count("\n") == 1
-    assert blocker.read_text() == "x"
