@@ -64,7 +64,6 @@ from gms_comp.tables.table import GmsTable, table_to_dict
 from sim.scenarios import Scenario, build_reference
 from sim.strategies.coulomb_viscous import CoulombViscous
 
-FEEDFORWARDS = ("none", "coulomb_viscous", "table", "extended", "calibrated")
 # the feedforwards a commissioning may deploy (tables, for `gms-comp run`)
 TABLES = ("table", "extended", "calibrated")
 Progress = Callable[[str], None]
@@ -104,7 +103,7 @@ def fit_coulomb_viscous(trace: Trace, band_m_s: float, mass_kg: float) -> Coulom
     the position). Fitted on the force as recorded, the mass's force on the acceleration
     ramps took the place of friction: a Coulomb level 6x the guide's."""
     t = trace.time_s
-    path = trace.reference_position_m if trace.reference_position_m is not None else None
+    path = trace.reference_position_m
     if path is None or not np.isfinite(path).all():
         path = trace.position_m
     v = trace.velocity_m_s if trace.velocity_m_s is not None else np.gradient(trace.position_m, t)
