@@ -106,6 +106,7 @@ def test_header_names_with_operators_are_read_whole_and_quoted_ones_split() -> N
         ('"a', "is not closed"),
         ("a/0", "division by zero"),
         ("1+2", "names no column"),
+        ("01*a", "has leading zeros"),  # as Python refuses it
     ],
 )
 def test_refusals(text: str, says: str) -> None:

@@ -42,6 +42,9 @@ MAX_MAP_CHARS = 256
 MAX_MAP_DEPTH = 16
 
 _NUMBER = re.compile(r"(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+# An integer written with leading zeros (``01``): Python refuses it (an old octal form);
+# so does this reader, rather than guess what was meant. ``00``, ``01.5``, ``01e3`` are fine.
+_LEADING_ZEROS = re.compile(r"0+[1-9]\d*")
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _OPERATORS = "+-*/()"
 _ENDS_NAME = frozenset(" \t*/+-)")
@@ -162,6 +165,9 @@ def _tokens(text: str, names: list[str], where: str) -> list[Token]:
             kind, value, i = token
             if kind == "num" and not math.isfinite(float(value)):
                 raise TraceError(where, "", f"number {value} is not finite")
+            if kind == "num" and _LEADING_ZEROS.fullmatch(value):
+                raise TraceError(where, "", f"number {value} has leading zeros: write "
+                                 f"{value.lstrip('0')}")  # fmt: skip
             out.append((kind, float(value) if kind == "num" else value))
         elif ch in _OPERATORS:
             out.append(("op", ch))
