@@ -13,16 +13,18 @@ import itertools
 import json
 import time
 from pathlib import Path
+from typing import Any, cast
 
 import pytest
 
 from firmware_bridge.profiles.cia402.drive import Cia402Drive
+from firmware_bridge.profiles.cia402.tx import Cia402Tx
 from firmware_bridge.settings import CanConfig
 from gms_comp.app.cli import main
 from gms_comp.app.commands.commission import summary
 from gms_comp.app.commands.diagnose import extended_table
 from gms_comp.app.live.commission import commission, physics_table
-from gms_comp.app.live.follow import follow
+from gms_comp.app.live.follow import Follower, follow
 from gms_comp.app.live.machine import machine_on_bus, scenario_program
 from gms_comp.app.live.report import write_report
 from gms_comp.config import default_config_path
@@ -134,3 +136,26 @@ def test_machine_runs_for_its_duration_and_reports(capsys: pytest.CaptureFixture
     status = json.loads(captured.out)
     assert code == 0 and "ready" in captured.err
     assert status["stopped_by"] == "duration" and status["state"] == "switch_on_disabled"
+
+
+def test_the_follower_reads_speed_over_the_syncs_since_its_last_input() -> None:
+    """A stall of the NC (SYNCs not seen) is no jump in speed: the observer gets the
+    distance over the time since the last input, and the position looked ahead by it."""
+    seen: list[tuple[float, float]] = []
+
+    class Recording:
+        def step(self, position_m: float, velocity_m_s: float) -> float:
+            seen.append((position_m, velocity_m_s))
+            return 0.0
+
+    tx = Cia402Tx(CanConfig(sync_master=False))
+    follower = Follower(tx, cast(Any, Recording()), "reference", 1, 1e-3)
+    speed = 0.02  # m/s
+    for slot in (0, 1, 2, 30, 31):  # 27 SYNCs missed between 2 and 30
+        tx.observed.target_m = speed * slot * 1e-3
+        tx.observed.counts["nc"] += 1
+        follower(slot * 1e-3)
+    assert [v for _, v in seen[1:]] == pytest.approx([speed] * 4)
+    assert [x for x, _ in seen] == pytest.approx(
+        [speed * (k + 1) * 1e-3 for k in (-1, 1, 2, 30, 31)]
+    )

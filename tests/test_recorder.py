@@ -11,6 +11,8 @@ import struct
 
 import can
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from firmware_bridge.profiles.cia402.codec import Cia402Codec, load_drive_od
 from firmware_bridge.profiles.cia402.recorder import Recorder
@@ -91,3 +93,22 @@ def test_without_a_sync_counter_a_tpdo_goes_to_the_row_open_when_it_arrives() ->
     rec.frame(tpdo2(9, 0))
     r = rec.finish()
     assert r.rows[0][1] == pytest.approx(9e-9) and r.rows[0][3] == pytest.approx(0.04)
+
+
+@settings(max_examples=50, deadline=None, derandomize=True)
+@given(st.lists(st.booleans(), min_size=2, max_size=60))
+def test_a_row_holds_the_target_of_the_slot_just_before_or_none(seen: list[bool]) -> None:
+    """Along a moving target (slot k brings k um), SYNCs skipped at random (an NC or a bus
+    that stalled): a row's target is the one of its slot's predecessor, never one from
+    before a stall, and every row after a stall is counted without a target."""
+    rec = Recorder(CODEC, UNIT, RATED)
+    slots = [k for k, s in enumerate(seen) if s] or [0]
+    for k in slots:
+        rec.sync(k, k % 240 + 1, target_m=1e-6 * k)
+    r = rec.finish()
+    for slot, row in zip(r.slots, r.rows, strict=True):
+        if slot - 1 in slots:
+            assert row[0] == pytest.approx(1e-6 * (slot - 1))
+        else:
+            assert math.isnan(row[0])
+    assert r.lost["target"] == sum(k - 1 not in slots for k in slots)

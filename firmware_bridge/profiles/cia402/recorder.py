@@ -7,8 +7,10 @@ sampled state has followed for a cycle. The drive samples its TPDOs at SYNC and 
 them at once: TPDO1 (statusword, current actual) names the SYNC it answers by that
 counter (object 0x2006), so it is filed under its own row however late it comes (counted
 ``late`` when it came after the next SYNC); TPDO2 (position and velocity actual) goes
-with the TPDO1 just before it. A row is closed when its counter comes round again or the
-recording ends; what never came stays NaN and is counted ``lost``, never interpolated.
+with the TPDO1 just before it. A row after a SYNC that never came (the NC or the bus
+stalled) has no target: the one it followed came with a SYNC not seen. A row is closed
+when its counter comes round again or the recording ends; what never came stays NaN and
+is counted ``lost``, never interpolated.
 Without a counter in the SYNC (0), a TPDO goes to the row open when it arrives.
 """
 
@@ -81,6 +83,7 @@ class Recorder:
         self._for_motion: _Row | None = None  # the row of the TPDO1 just before
         self._pending_target = math.nan  # the NC's RPDO1 seen since the last SYNC
         self._followed = math.nan  # the target of the last SYNC: what the drive follows
+        self._last_slot: int | None = None  # the slot of the last SYNC
 
     def frame(self, msg: can.Message) -> None:
         """One frame from the bus: the NC's target, or a TPDO for its row."""
@@ -111,15 +114,17 @@ class Recorder:
     def sync(self, slot: int, counter: int, target_m: float | None = None) -> None:
         """A SYNC of time slot ``slot`` with counter byte ``counter`` (0: none), bringing
         ``target_m`` (default: the NC's RPDO1 seen since the last SYNC): a new row, whose
-        target is the previous SYNC's."""
+        target is the previous SYNC's if that was the slot just before (else NaN)."""
         key = counter if counter else -slot  # without a counter, rows close in order
         if key in self._open:
             self._close(self._open.pop(key))
         while len(self._open) >= OPEN_ROWS:
             self._close(self._open.popitem(last=False)[1])
         target = self._pending_target if target_m is None else target_m
-        self._open[key] = _Row(slot, self._followed)
+        followed = self._followed if self._last_slot == slot - 1 else math.nan
+        self._open[key] = _Row(slot, followed)
         self._newest, self._pending_target, self._followed = key, math.nan, target
+        self._last_slot = slot
 
     def finish(self) -> Recording:
         """Close every open row; the recording, rows in slot order."""

@@ -39,7 +39,7 @@ class Follower:
     look_ahead_cycles: int
     period_s: float
     _seen: int = -1
-    _last_x: float | None = None
+    _last: tuple[float, float] | None = None  # the last input and its SYNC's time
 
     def __call__(self, t_s: float) -> float | None:
         """The feedforward for the SYNC being answered, or None if its input is missing."""
@@ -50,8 +50,13 @@ class Follower:
         self._seen = observed.counts[kind]
         x = observed.target_m if self.feed == "reference" else observed.position_m
         assert x is not None
-        v = 0.0 if self._last_x is None else (x - self._last_x) / self.period_s
-        self._last_x = x
+        # over the SYNCs since the last input: a stall is no jump in speed
+        v = (
+            0.0
+            if self._last is None
+            else (x - self._last[0]) / max(t_s - self._last[1], self.period_s)
+        )
+        self._last = (x, t_s)
         if self.observer is None:
             return 0.0
         ahead = x + v * self.look_ahead_cycles * self.period_s
