@@ -12,17 +12,21 @@ Every run starts ``gms-comp machine`` in its own process on python-can's ``udp_m
   tracking error with the deployed table (of the ripple commissioning) against none;
 - ``record`` under dropped and delayed TPDOs: samples, lost, late;
 - the observer in the drive (the table downloaded, the servo at 4, 8, 16 kHz) against
-  the feedforward over CAN at 1 kHz with and without look-ahead, stepped over the bus.
+  the feedforward over CAN at 1 kHz with and without look-ahead, stepped over the bus;
+- the ceiling of each hidden effect's target: the reversal test stepped with the physics
+  table extended by the effect's true parameters (what a perfect diagnosis would
+  deploy), against none and the physics table alone.
 
 Prints one JSON document. Real time on a shared 2-core machine: run it idle.
 
-    python benchmarks/bench_live.py [--scale 0.25] [--only commission|run|record]
+    python benchmarks/bench_live.py [--scale 0.25] [--only commission|run|record|in_drive|truth]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -181,10 +185,47 @@ def in_drive_vs_can() -> dict[str, Any]:
     return out
 
 
+def truth_ceiling() -> dict[str, Any]:
+    """Per hidden effect, stepped over the bus: the reversal test with none, the physics
+    table, and the table extended by the effect's true parameters (peak and RMS in nm)."""
+    import dataclasses
+
+    from firmware_bridge.profiles.cia402.drive import Cia402Drive
+    from firmware_bridge.settings import load_can_config
+    from gms_comp.app.live.commission import physics_table, verify
+    from gms_comp.tables.table import Extension
+    from sim.machine import CspAxis, load_machine
+
+    out: dict[str, Any] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for effect, (parameters, _, _) in EFFECTS.items():
+            m = load_machine(config(Path(tmp), effect, parameters))
+            cfg = dataclasses.replace(load_can_config(), channel=f"bench-truth-{effect}")
+
+            def drive(c: Any, bus: Any, m: Any = m) -> Cia402Drive:
+                return Cia402Drive(c, bus, CspAxis(m, c.cycle_period_s))
+
+            table = physics_table(m.scenario)
+            truth = dataclasses.replace(table, extensions=(Extension(effect, parameters),))
+            runs = {
+                name: verify(cfg, m.scenario, name, model, None, drive)
+                for name, model in (("none", None), ("table", table), ("truth", truth))
+            }
+            peak = {k: (v.peak_reversal_error_m or math.nan) * 1e9 for k, v in runs.items()}
+            out[effect] = {
+                "peak_reversal_error_nm": {k: round(x, 1) for k, x in peak.items()},
+                "rms_error_nm": {k: round(v.rms_error_m * 1e9, 1) for k, v in runs.items()},
+                "truth_over_none": round(peak["truth"] / peak["none"], 3),
+                "truth_over_table": round(peak["truth"] / peak["table"], 3),
+            }
+            print(f"truth ceiling {effect}: {out[effect]}", file=sys.stderr)
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--scale", type=float, default=0.25, choices=(0.25, 0.5, 1.0))
-    parser.add_argument("--only", choices=("commission", "run", "record", "in_drive"))
+    parser.add_argument("--only", choices=("commission", "run", "record", "in_drive", "truth"))
     args = parser.parse_args()
     doc: dict[str, Any] = {"load_1min_start": os.getloadavg()[0]}
     with tempfile.TemporaryDirectory() as tmp:
@@ -197,6 +238,8 @@ def main() -> None:
             doc["record"] = recording(folder)
         if args.only in (None, "in_drive"):
             doc["in_drive_vs_can"] = in_drive_vs_can()
+        if args.only in (None, "truth"):
+            doc["truth_ceiling"] = truth_ceiling()
     doc["load_1min_end"] = os.getloadavg()[0]
     print(json.dumps(doc, indent=2))
 
