@@ -7,8 +7,9 @@ the plant (:class:`~sim.plant.LinearMotorAxis`, the full ball model as friction)
 drive's own position/velocity loop (:class:`~sim.controller.CascadeController`) for the
 servo cycles of that bus cycle, the target interpolated linearly between two bus
 cycles. The ``[machine]`` section says what differs from the nominal ``[plant]``: a
-hidden catalogue effect on top of the ball model (applied per bus cycle as a force held
-over it), the true force constant, the encoder, the noise on the measured current.
+hidden catalogue effect on top of the ball model (applied per servo cycle as a force held
+over it, as the plant's friction), the true force constant, the encoder, the noise on
+the measured current.
 """
 
 from __future__ import annotations
@@ -150,7 +151,7 @@ class CspAxis:
         self._stream: ExtensionStream | None = None
         if machine.effect is not None:
             # every effect gets the guide's GMS (0.2-0.4 s): one on the elements needs it
-            self._stream = ExtensionStream([machine.effect], cycle_period_s, gms=_gms_of(s))
+            self._stream = ExtensionStream([machine.effect], self.servo_period_s, gms=_gms_of(s))
         self.reset()
 
     def reset(self) -> None:
@@ -159,6 +160,7 @@ class CspAxis:
         self.controller.reset(0.0)
         self.time_s = 0.0
         self._last_v = 0.0
+        self._hidden_steps = 0  # servo cycles the hidden effect has seen
         self.targets = [0.0, 0.0]  # the last two targets, for the interpolation
         self.position_m = self.axis.measure()
         if self._stream is not None:
@@ -180,7 +182,6 @@ class CspAxis:
             self.controller.reset(self.position_m)
         step = (target_position_m - previous) / self.substeps
         accel = (target_position_m - 2 * previous + before) / self.cycle_period_s**2
-        self._hold_hidden_force()
         # the loop is one servo cycle ahead of its reference (its velocity feedforward
         # moves the axis through the servo cycle): at the end of the bus cycle it stands
         # at the target
@@ -192,6 +193,7 @@ class CspAxis:
                 command = self.controller.step(self.position_m, previous + i * step, accel, offset)
             else:
                 command = 0.0
+            self._hold_hidden_force(previous + i * step if enabled else self.axis.position_m)
             self.position_m = self.axis.step(command)
         self.targets = [previous, target_position_m]
         self.time_s += self.cycle_period_s
@@ -203,15 +205,17 @@ class CspAxis:
             target_position_m - self.position_m,
         )
 
-    def _hold_hidden_force(self) -> None:
-        """The hidden effect's force at the start of the cycle, held over it."""
+    def _hold_hidden_force(self, path_m: float) -> None:
+        """The hidden effect's force at the start of the servo cycle, held over it (at
+        the bus cycle, a force that turns with the motion, held 1 ms, shook the loop)."""
         if self._stream is None:
             return
-        x, v = self.axis.position_m, self.axis.velocity_m_s
+        x, v = path_m, self.axis.velocity_m_s
         base = self.axis.friction_force_N - self.axis.io[2]
-        accel = 0.0 if self.time_s == 0.0 else (v - self._last_v) / self.cycle_period_s
+        accel = 0.0 if self._hidden_steps == 0 else (v - self._last_v) / self.servo_period_s
         self._last_v = v
-        extended = self._stream.step(self.time_s, x, v, accel, base)
+        extended = self._stream.step(self._hidden_steps * self.servo_period_s, x, v, accel, base)
+        self._hidden_steps += 1
         self.axis.hold_extra_force(extended - base)
 
 

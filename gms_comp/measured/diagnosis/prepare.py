@@ -41,9 +41,11 @@ class Part:
     force_N: FloatArray
     train: BoolArray
     held: BoolArray
-    # The path's reversals, rests and distances are the measured position's, as the
-    # compensator sees it (the kinematics' zero-phase low-pass rings where a fast move
-    # stops short, and a ring of a count's fraction is a false reversal).
+    # The path's reversals, rests and distances: the commanded position's where the trace
+    # holds one (the axis rings under its loop after a force's step, tens of nm, and
+    # each ring was a reversal), else the measured position's, as the compensator sees
+    # it (the kinematics' zero-phase low-pass rings where a fast move stops short, and a
+    # ring of a count's fraction is a false reversal).
     path_position_m: FloatArray
 
     def picked(self, every: int) -> Part:
@@ -90,7 +92,7 @@ class Prepared:
 
     def context(self, part: Part, gms_force_N: FloatArray) -> fx.Context:
         """The path context of ``part`` with the GMS force ``gms_force_N``: its
-        standstill speed, deadband and rest band, traced on its measured position, its
+        standstill speed, deadband and rest band, traced on its path position, its
         reversals dated from their turning points (a recorded trace knows them; dated
         where the retreat passed the deadband, as a streaming compensator dates them, a
         reversal transient's amplitude came out far off at slow vertices)."""
@@ -193,16 +195,16 @@ def prepare(
     n = len(trace)
     if validation is None:
         held = _held_rows(kin, still, deadband, cfg, resolution, trace) if held is None else held
-        parts: tuple[Part, ...] = (Part(kin, trace.force_N, ~held, held, trace.position_m),)
+        parts: tuple[Part, ...] = (Part(kin, trace.force_N, ~held, held, _path(trace)),)
     else:
         vkin = kinematics(validation, cutoff, accel_cutoff)
         check_usable(validation, vkin, deadband, still, cfg.split)
         m = len(validation)
         parts = (
             Part(kin, trace.force_N, np.ones(n, dtype=bool), np.zeros(n, dtype=bool),
-                 trace.position_m),
+                 _path(trace)),
             Part(vkin, validation.force_N, np.zeros(m, dtype=bool), np.ones(m, dtype=bool),
-                 validation.position_m),
+                 _path(validation)),
         )  # fmt: skip
     rest_band = cfg.rest_band_steps * resolution
     full = Prepared(
@@ -222,6 +224,12 @@ def fitted_every(sample_time_s: float, rate_Hz: float, most: int) -> int:
     a slower trace."""
     every = int(1.0 / (sample_time_s * rate_Hz) + 1e-6) if rate_Hz > 0.0 else 1
     return max(1, min(every, most))
+
+
+def _path(trace: Trace) -> FloatArray:
+    """The position the path is traced on (:attr:`Part.path_position_m`)."""
+    ref = trace.reference_position_m
+    return ref if ref is not None and bool(np.all(np.isfinite(ref))) else trace.position_m
 
 
 def _held_rows(
