@@ -5,8 +5,9 @@ Every run starts ``gms-comp machine`` in its own process on python-can's ``udp_m
 
 - ``commission``, with a hidden ``position_ripple``, ``reversal_transient`` and
   ``viscous`` in turn: the effect named, its main parameter's error, the reversal test's
-  peak and RMS error per feedforward, the table deployed and the ratios the issue targets
-  (extended and deployed against none and against the physics table);
+  peak and RMS error per feedforward (over the bus, and each table in the drive), the table
+  deployed and the ratios the issue targets (the extended table against none and against
+  the physics table, over the bus and in the drive);
 - ``run`` at 1 kHz against ``gms-comp machine --nc``: the share of SYNCs answered within
   the cycle, SYNC-to-frame p50/p99, stale or foreign frames the drive applied, and the
   tracking error with the deployed table (of the ripple commissioning) against none;
@@ -87,7 +88,7 @@ def commissioning(folder: Path, scale: float) -> dict[str, Any]:
         path = config(folder, effect, parameters)
         started = time.monotonic()
         with machine(path):
-            doc = cli("commission", str(path), "--scale", str(scale),
+            doc = cli("commission", str(path), "--scale", str(scale), "--in-drive",
                       "--table", str(folder / f"{effect}.table.json"))  # fmt: skip
         found = {e["effect"]: e["parameters"] for e in doc["diagnosis"]["effects"]}
         v = doc["verification"]
@@ -102,8 +103,11 @@ def commissioning(folder: Path, scale: float) -> dict[str, Any]:
             "deployed": doc["deployed"],
             "extended_over_none": peak["extended"] / peak["none"],
             "extended_over_table": peak["extended"] / peak["table"],
-            "deployed_over_none": peak[doc["deployed"]] / peak["none"],
-            "deployed_over_table": peak[doc["deployed"]] / peak["table"],
+            "extended_in_drive_over_none": peak["extended_in_drive"] / peak["none"],
+            "extended_in_drive_over_table_in_drive": (
+                peak["extended_in_drive"] / peak["table_in_drive"]
+            ),
+            "deployed_in_drive": doc["deployed_in_drive"],
             "can": doc["can"]["stale_or_corrupt_applied"],
             "samples_missing": doc["recording"]["samples_missing"],
             "samples": doc["recording"]["samples"],

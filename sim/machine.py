@@ -175,7 +175,10 @@ class CspAxis:
     ) -> AxisSample:
         """One bus cycle: follow ``target_position_m`` (held if the drive is not enabled),
         the feedforward ``torque_offset_A`` added to the loop's current command, and
-        ``in_drive(position, velocity)`` (the drive's own observer) each servo cycle."""
+        ``in_drive(position, velocity)`` (the drive's own observer) each servo cycle, on
+        the position command and its speed: on the encoder, a reversal transient's
+        extension turned with the axis's ringing after each reversal (559 nm peak with the
+        true parameters against 447 nm without feedforward; 27 nm on the command)."""
         previous, before = self.targets[-1], self.targets[-2]
         if not enabled:
             target_position_m = self.position_m
@@ -188,8 +191,8 @@ class CspAxis:
         for i in range(self.substeps):
             if enabled:
                 offset = torque_offset_A
-                if in_drive is not None:  # on what the drive measures: encoder, velocity
-                    offset += in_drive(self.position_m, self.controller.velocity_m_s)
+                if in_drive is not None:  # on the position command, as it moves
+                    offset += in_drive(previous + i * step, step / self.servo_period_s)
                 command = self.controller.step(self.position_m, previous + i * step, accel, offset)
             else:
                 command = 0.0

@@ -6,7 +6,10 @@ CRC-32 into 0x2101); the drive checks the CRC, that the table is one and that it
 (at most :data:`MAX_ELEMENTS` elements, :data:`MAX_TABLE_BYTES`), and refuses it with an
 SDO abort otherwise; 0x2102 then shows the elements loaded. From then on the compensator
 sends only the friction level (RPDO2 in mode ``in_drive``, per mille in 0x60B2): the drive
-steps its own observer every servo cycle on the position and velocity it measures, and
+steps its own observer every servo cycle on its position command (the target
+interpolated over the bus cycle) and its speed, as the compensator follows the NC's
+target (on the encoder, a reversal transient's extension turned with the axis's ringing
+after each reversal, tens of nm, and made the peak worse than no feedforward), and
 adds ``level * F / k_f`` to its current command (:class:`InDriveObserver`). The level goes
 through the drive's supervision like any command: a lost link ramps it, and with it the
 feedforward, to zero.

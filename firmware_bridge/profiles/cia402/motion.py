@@ -79,7 +79,8 @@ class DriveAxis(Protocol):
         in_drive: Callable[[float, float], float] | None = None,
     ) -> AxisSample:
         """Follow the target with the feedforward added (held in place when not enabled);
-        ``in_drive(position, velocity)`` adds the drive's own feedforward each servo cycle."""
+        ``in_drive(position, velocity)`` adds the drive's own feedforward each servo cycle,
+        stepped on the position command (the target interpolated) and its speed."""
         ...
 
 

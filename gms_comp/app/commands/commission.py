@@ -57,8 +57,9 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--in-drive",
         action="store_true",
-        help="also download the deployed table into the drive (SDO, 0x2100) and test it "
-        "run there, at the drive's servo rate (a drive with the gms-comp observer)",
+        help="also download each table into the drive (SDO, 0x2100) and test it run there, "
+        "at the drive's servo rate on its position command (a drive with the gms-comp "
+        "observer), and deploy the best of those",
     )
     p.add_argument("--json", action="store_true", help="print the document as JSON on stdout")
     p.add_argument("--report", type=output_dir, metavar="DIR", help="write JSON and HTML here")
@@ -123,5 +124,8 @@ def summary(doc: dict[str, Any]) -> str:
             f"  {name:16s} {'-' if peak is None else f'{peak * 1e6:8.3f}'} um / "
             f"{v['rms_error_m'] * 1e6:8.3f} um"
         )
-    lines.append(f"deployed: {doc['deployed']} (the table with the smallest peak reversal error)")
+    where = " in the drive" if doc.get("deployed_in_drive") else ""
+    lines.append(
+        f"deployed: {doc['deployed']}{where} (the table with the smallest peak reversal error)"
+    )
     return "\n".join(lines)

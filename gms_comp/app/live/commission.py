@@ -66,6 +66,7 @@ from sim.strategies.coulomb_viscous import CoulombViscous
 
 # the feedforwards a commissioning may deploy (tables, for `gms-comp run`)
 TABLES = ("table", "extended", "calibrated")
+IN_DRIVE = "_in_drive"  # a verification's name with its table run in the drive
 Progress = Callable[[str], None]
 
 
@@ -168,7 +169,7 @@ def verify(
     """One reversal test with ``model`` as feedforward; its errors from the drive's TPDOs.
 
     ``in_drive``: ``model`` (a table) is downloaded into the drive, which runs the observer
-    at its servo rate on what it measures; the compensator sends only the level, 1.
+    at its servo rate on its position command; the compensator sends only the level, 1.
     """
     period = cfg.cycle_period_s
     targets = reversal_targets(s, period).tolist()
@@ -243,6 +244,7 @@ class Commissioning:
                 "viscous_Ns_per_m": self.coulomb_viscous.viscous_Ns_per_m,
             },
             "deployed": self.deployed,
+            "deployed_in_drive": any(v.name.endswith(IN_DRIVE) for v in self.verifications),
             "verification": {
                 v.name: {
                     "peak_reversal_error_m": v.peak_reversal_error_m,
@@ -264,14 +266,16 @@ class Commissioning:
         return {"runs": runs, "stale_or_corrupt_applied": total}
 
 
-def best_table(runs: list[Verification]) -> str:
-    """The table (:data:`TABLES`) whose reversal test had the smallest peak reversal
-    error, then RMS; ``extended`` where none was scored (an interrupted run)."""
+def best_table(runs: list[Verification], where: str = "") -> str:
+    """The table (:data:`TABLES`) whose reversal test (run ``where``: "" over the bus,
+    :data:`IN_DRIVE` in the drive) had the smallest peak reversal error, then RMS;
+    ``extended`` where none was scored (an interrupted run)."""
     scored = [
-        (v.peak_reversal_error_m, v.rms_error_m, v.name)
+        (v.peak_reversal_error_m, v.rms_error_m, v.name.removesuffix(where))
         for v in runs
-        if v.name in TABLES and v.peak_reversal_error_m is not None
-    ]
+        if v.name.removesuffix(where) in TABLES and v.name.endswith(where)
+        and v.peak_reversal_error_m is not None
+    ]  # fmt: skip
     return min(scored)[2] if scored else "extended"
 
 
@@ -340,11 +344,18 @@ def commission(
             break
         progress(f"reversal test with feedforward {name}")
         runs.append(verify(cfg, s, name, model, stop_request, drive))
-    deployed = best_table(runs)
+    if in_drive:  # each table in the drive too, and the one deployed chosen there
+        for name, table in tables.items():
+            if stop_request is not None and stop_request.is_set():
+                break
+            progress(f"reversal test with the {name} table in the drive")
+            runs.append(
+                verify(cfg, s, f"{name}{IN_DRIVE}", table, stop_request, drive, in_drive=True)
+            )
+    deployed = best_table(runs, IN_DRIVE if in_drive else "")
     progress(f"deploying {deployed}: the smallest peak reversal error of the tables")
-    if in_drive and not (stop_request is not None and stop_request.is_set()):
-        progress(f"reversal test with the {deployed} table in the drive")
-        runs.append(
-            verify(cfg, s, f"{deployed}_in_drive", tables[deployed], stop_request, drive, True)
-        )
+    tested_last = runs[-1].name.removesuffix(IN_DRIVE) if runs else deployed
+    if in_drive and drive is None and deployed != tested_last:
+        progress(f"leaving the {deployed} table in the drive")
+        download_table(cfg, json.dumps(table_to_dict(tables[deployed])).encode())
     return Commissioning(recorded, trace, result, tables, runs, cv, can_figures(report), deployed)
