@@ -134,7 +134,12 @@ def program_feedforward(
     model: GmsTable | ForceModel | None, s: Scenario, period_s: float
 ) -> Callable[[NcProgram], float | None]:
     """The feedforward of ``model`` along the NC's program, ``look_ahead_cycles`` ahead of
-    the target about to be sent (the program is known: no extrapolation)."""
+    the target sent last (the program is known: no extrapolation). At the default, one,
+    that is the target sent in the same cycle, which the drive takes at the same SYNC as
+    the feedforward: as SYNC master the transport is that one cycle, as `run` follows an
+    NC's SYNC (the feedforward applied a SYNC after the target it answers). One more
+    (the feedforward a cycle early) doubled the peak reversal error: 38 against 23 nm
+    with no hidden effect, 163 against 27 nm with a reversal transient's true extension."""
     if model is None:
         return lambda program: 0.0
     comp = s.compensator
@@ -145,7 +150,7 @@ def program_feedforward(
     def feedforward(program: NcProgram) -> float | None:
         if not program.moving:
             return 0.0
-        i = program.index + 1 + ahead
+        i = program.index + ahead
         x, x_next = program.target_at(i), program.target_at(i + 1)
         return observer.step(x, (x_next - x) / period_s)
 
