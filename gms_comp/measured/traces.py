@@ -78,6 +78,13 @@ class Trace:
         return len(self.time_s)
 
     @property
+    def commanded_or_measured_position_m(self) -> np.ndarray:
+        """The commanded position where the trace holds it on every sample, else the
+        measured one: the path a closed-loop axis follows without its ringing."""
+        ref = self.reference_position_m
+        return ref if ref is not None and bool(np.all(np.isfinite(ref))) else self.position_m
+
+    @property
     def sample_time_s(self) -> float:
         """Mean sampling interval (the clock is uniform; stamps may jitter by a few ns)."""
         return float((self.time_s[-1] - self.time_s[0]) / (len(self.time_s) - 1))

@@ -104,9 +104,7 @@ def fit_coulomb_viscous(trace: Trace, band_m_s: float, mass_kg: float) -> Coulom
     the position). Fitted on the force as recorded, the mass's force on the acceleration
     ramps took the place of friction: a Coulomb level 6x the guide's."""
     t = trace.time_s
-    path = trace.reference_position_m
-    if path is None or not np.isfinite(path).all():
-        path = trace.position_m
+    path = trace.commanded_or_measured_position_m
     v = trace.velocity_m_s if trace.velocity_m_s is not None else np.gradient(trace.position_m, t)
     a = np.gradient(np.gradient(path, t), t)
     friction = trace.force_N - mass_kg * a

@@ -259,7 +259,8 @@ def refine_slip_level(
 ) -> Basis | None:
     """The basis's slip level and transition velocity (a free basis's transition shape
     too) searched again with ``cost`` (the training RMS with the kept effects present):
-    bounded coordinate steps from the baseline's. A table calibrated without the effects
+    bounded coordinate steps from the baseline's; None where a table's own is best. A
+    table calibrated without the effects
     took part of a speed-dependent one into its level (a viscous slope raised it 1.12x,
     and a Stribeck fall 1.11x was then named to take it back at low speed)."""
     basis = baseline.basis
@@ -284,9 +285,10 @@ def refine_slip_level(
 def _refine_table_level(
     baseline: Baseline, basis: TableBasis, cost: Callable[[tuple[FittedPart, ...]], float],
     vt_range: tuple[float, float],
-) -> TableBasis:  # fmt: skip
-    """The table's C_v and v_t stepped as :func:`refine_slip_level` steps a free basis's;
-    its transition's shape, tail and law are the table's own."""
+) -> TableBasis | None:  # fmt: skip
+    """The table's C_v and v_t stepped as :func:`refine_slip_level` steps a free basis's
+    (None: none better than its own); its transition's shape, tail and law are the
+    table's own."""
     p = basis.params
     start: Level = (p.slip_level, p.transition_velocity_m_s, p.transition_exponent,
                     p.transition_tail, p.limit_follows_level)  # fmt: skip
@@ -303,4 +305,4 @@ def _refine_table_level(
         return cost(rebased(baseline, relevelled(level)))
 
     best = coordinate_steps((cost(baseline.parts), start), level_cost, REFINE_STEPS, vt_range)
-    return relevelled(best[1]) if best[1] != start else basis
+    return relevelled(best[1]) if best[1] != start else None

@@ -195,16 +195,17 @@ def prepare(
     n = len(trace)
     if validation is None:
         held = _held_rows(kin, still, deadband, cfg, resolution, trace) if held is None else held
-        parts: tuple[Part, ...] = (Part(kin, trace.force_N, ~held, held, _path(trace)),)
+        path = trace.commanded_or_measured_position_m
+        parts: tuple[Part, ...] = (Part(kin, trace.force_N, ~held, held, path),)
     else:
         vkin = kinematics(validation, cutoff, accel_cutoff)
         check_usable(validation, vkin, deadband, still, cfg.split)
         m = len(validation)
         parts = (
             Part(kin, trace.force_N, np.ones(n, dtype=bool), np.zeros(n, dtype=bool),
-                 _path(trace)),
+                 trace.commanded_or_measured_position_m),
             Part(vkin, validation.force_N, np.zeros(m, dtype=bool), np.ones(m, dtype=bool),
-                 _path(validation)),
+                 validation.commanded_or_measured_position_m),
         )  # fmt: skip
     rest_band = cfg.rest_band_steps * resolution
     full = Prepared(
@@ -224,12 +225,6 @@ def fitted_every(sample_time_s: float, rate_Hz: float, most: int) -> int:
     a slower trace."""
     every = int(1.0 / (sample_time_s * rate_Hz) + 1e-6) if rate_Hz > 0.0 else 1
     return max(1, min(every, most))
-
-
-def _path(trace: Trace) -> FloatArray:
-    """The position the path is traced on (:attr:`Part.path_position_m`)."""
-    ref = trace.reference_position_m
-    return ref if ref is not None and bool(np.all(np.isfinite(ref))) else trace.position_m
 
 
 def _held_rows(
